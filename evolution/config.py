@@ -1,0 +1,171 @@
+"""Every number of the paper's evolution, as frozen, validated configuration.
+
+The paper (Elfwing et al., "Biologically Inspired Embodied Evolution of Survival") fixes its
+numbers in two tables; DESIGN.md §5 fixes what the paper leaves open. Each number is a field here
+with the paper's value as its default, so a run's behaviour is fully described by its config and
+seed, and any deviation from the paper is an explicit, visible field change.
+
+- :class:`GeneticConfig` is Table 2 (the genome and its operators) plus the CE tournament size
+  (§4.1).
+- :class:`EvolutionConfig` is Table 1 (the survival task and the population) plus the fitness
+  rule's time unit, and holds a :class:`GeneticConfig`.
+
+The energy numbers (initial 100, maximum 200, maximum recharge 40 steps) also live in the survival
+world's own config, which applies them physically. They appear here because the evolution side
+needs them too: new agents are born with ``initial_energy`` and the controller normalises its
+energy and recharge-step inputs by ``max_energy`` and ``max_recharge_steps``. The runner that
+wires the two checks that both configs agree.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+#: Number of evolved weights (paper §3.5): 3 for the recharge decision + 12 x 3 for selection.
+GENOME_LENGTH = 39
+
+
+def _check_int(name: str, value: object, low: int, high: int | None = None) -> None:
+    """Raise a ``ValueError`` naming ``name`` unless ``value`` is an int in [low, high]."""
+    ok = isinstance(value, int) and not isinstance(value, bool)
+    ok = ok and value >= low and (high is None or value <= high)
+    if not ok:
+        upper = "∞)" if high is None else f"{high}]"
+        raise ValueError(f"{name} must be an integer in [{low}, {upper}, got {value!r}")
+
+
+def _check_real(
+    name: str,
+    value: object,
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+) -> None:
+    """Raise a ``ValueError`` naming ``name`` unless ``value`` is a finite real in the range."""
+    ok = isinstance(value, int | float) and not isinstance(value, bool)
+    ok = ok and math.isfinite(value)  # type: ignore[arg-type]
+    if ok:
+        ok = (value > low if low_open else value >= low) and value <= high  # type: ignore[operator]
+    if not ok:
+        bracket = "(" if low_open else "["
+        raise ValueError(
+            f"{name} must be a finite number in {bracket}{low}, {high}], got {value!r}"
+        )
+
+
+@dataclass(frozen=True)
+class GeneticConfig:
+    """The genome and its genetic operators (paper Table 2, §3.5, §4.1).
+
+    Attributes:
+        initial_weight_low: lower bound of the uniform initial weights (paper: -1).
+        initial_weight_high: upper bound of the uniform initial weights (paper: 1).
+        crossover_probability: chance that offspring come from one-point crossover rather than
+            reproduction (copying) of a parent (paper: 0.6).
+        mutation_probability: independent chance per weight of being mutated (paper: 0.1).
+        mutation_low: lower bound of the uniform number added to a mutated weight (paper: -0.5).
+        mutation_high: upper bound of the uniform number added to a mutated weight (paper: 0.5).
+        tournament_size: individuals per tournament in the centralised GA (paper §4.1: 2).
+    """
+
+    initial_weight_low: float = -1.0
+    initial_weight_high: float = 1.0
+    crossover_probability: float = 0.6
+    mutation_probability: float = 0.1
+    mutation_low: float = -0.5
+    mutation_high: float = 0.5
+    tournament_size: int = 2
+
+    def __post_init__(self) -> None:
+        _check_real("initial_weight_low", self.initial_weight_low)
+        _check_real("initial_weight_high", self.initial_weight_high)
+        if not self.initial_weight_low < self.initial_weight_high:
+            raise ValueError(
+                "initial_weight_low must be < initial_weight_high, got "
+                f"[{self.initial_weight_low}, {self.initial_weight_high}]"
+            )
+        _check_real("crossover_probability", self.crossover_probability, 0.0, 1.0)
+        _check_real("mutation_probability", self.mutation_probability, 0.0, 1.0)
+        _check_real("mutation_low", self.mutation_low)
+        _check_real("mutation_high", self.mutation_high)
+        if not self.mutation_low <= self.mutation_high:
+            raise ValueError(
+                "mutation_low must be <= mutation_high, got "
+                f"[{self.mutation_low}, {self.mutation_high}]"
+            )
+        _check_int("tournament_size", self.tournament_size, 1)
+
+
+@dataclass(frozen=True)
+class EvolutionConfig:
+    """The survival task and population of the evolution (paper Table 1, §3.3, DESIGN.md §5).
+
+    Attributes:
+        lifetime_steps: control steps a virtual agent lives if it does not die (paper: 400).
+        time_sharing_steps: control steps an agent runs before its robot switches to the next
+            agent, unless a successful mating ends the slot earlier (paper: 100).
+        population_size: virtual agents in the whole colony (paper: 100).
+        n_robots: physical robots sharing the population (paper: 4, i.e. 25 agents each).
+        initial_energy: energy of a newborn agent (paper: 100).
+        max_energy: energy cap; the controller's energy input is ``energy / max_energy``
+            (paper: 200).
+        max_recharge_steps: longest recharge; the controller's recharge-step input is
+            ``steps / max_recharge_steps`` (paper: 40).
+        fitness_time_unit: the 100 in fitness = batteries / (time / 100) (paper §3.3), in
+            control steps.
+        ce_fitness_requires_survival: in the centralised GA an agent that died scores 0 even if
+            it mated. The paper (§2) says a zero fitness "means that a virtual agent dies ... or
+            ... is not able to perform any successful mating"; DESIGN.md §5 only names the
+            mating condition. ``True`` follows the paper.
+        genetics: the genome and its operators (Table 2).
+    """
+
+    lifetime_steps: int = 400
+    time_sharing_steps: int = 100
+    population_size: int = 100
+    n_robots: int = 4
+    initial_energy: float = 100.0
+    max_energy: float = 200.0
+    max_recharge_steps: int = 40
+    fitness_time_unit: float = 100.0
+    ce_fitness_requires_survival: bool = True
+    genetics: GeneticConfig = field(default_factory=GeneticConfig)
+
+    def __post_init__(self) -> None:
+        _check_int("lifetime_steps", self.lifetime_steps, 1)
+        _check_int("time_sharing_steps", self.time_sharing_steps, 1, self.lifetime_steps)
+        _check_int("n_robots", self.n_robots, 1)
+        _check_int("population_size", self.population_size, self.n_robots)
+        if self.population_size % self.n_robots != 0:
+            raise ValueError(
+                f"population_size ({self.population_size}) must be divisible by n_robots "
+                f"({self.n_robots}): every robot carries an equal virtual subpopulation"
+            )
+        _check_real("max_energy", self.max_energy, 0.0, low_open=True)
+        _check_real("initial_energy", self.initial_energy, 0.0, self.max_energy, low_open=True)
+        _check_int("max_recharge_steps", self.max_recharge_steps, 1)
+        _check_real("fitness_time_unit", self.fitness_time_unit, 0.0, low_open=True)
+        if not isinstance(self.ce_fitness_requires_survival, bool):
+            raise ValueError(
+                "ce_fitness_requires_survival must be True or False, got "
+                f"{self.ce_fitness_requires_survival!r}"
+            )
+        if not isinstance(self.genetics, GeneticConfig):
+            raise ValueError(f"genetics must be a GeneticConfig, got {type(self.genetics)!r}")
+        if self.genetics.tournament_size > self.population_size:
+            raise ValueError(
+                f"genetics.tournament_size must be in [1, population_size="
+                f"{self.population_size}], got {self.genetics.tournament_size}"
+            )
+
+    @property
+    def subpopulation_size(self) -> int:
+        """Virtual agents per robot (paper: 100 / 4 = 25)."""
+        return self.population_size // self.n_robots
+
+
+def default_config() -> EvolutionConfig:
+    """The paper's configuration (Tables 1 and 2)."""
+    return EvolutionConfig()
