@@ -1,0 +1,224 @@
+"""The geometric vision provider: what the omni camera would see, computed from poses.
+
+This is the fast path for long evolution runs (DESIGN.md §6). It reports the same quantities
+as the rendered camera, so the two are interchangeable (``benchmarks/vision_agreement.py``
+measures how well they agree):
+
+* **bearing and distance** of each target's vertical axis, from the MuJoCo state (the
+  convention of :mod:`cyber_rodent.vision.targets`);
+* **field of view**: a target is seen only through the part of it inside the camera's frustum
+  (exact per-view check, the same frustum the renderer uses);
+* **occlusion**: one ``mj_multiRay`` per robot casts a few rays at sample points spread over
+  every target's coloured part; a sample counts when the first geom its ray hits is the target
+  itself. Walls, robots (bodies, posts, mirrors, wheels) and packs all occlude; the robot's own
+  body does not (it is hidden from its own camera, as in the rendered image);
+* **resolution**: a target is detected only if its expected visible area in the image (its
+  projected size in pixels of the configured resolution, times the visible share of its
+  samples) reaches ``min_blob_area``, which gives the camera's real range limit;
+* a face plate is seen only from the front; a robot never sees its own LED or face.
+
+Every index is computed at construction; a call of :meth:`GeometricVision.observe` is a fixed
+sequence of small vectorised numpy operations plus one ``mj_multiRay`` per robot.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from cyber_rodent.vision.config import CameraConfig
+from cyber_rodent.vision.detections import apply_noise, frame_from_detections
+from cyber_rodent.vision.projection import OmniProjection
+from cyber_rodent.vision.targets import TargetShape, target_geometry
+from cyber_rodent.vision.types import BATTERY, FACE, LED, VisionFrame
+from cyber_rodent.world import World
+
+#: Occlusion samples, as (lateral, vertical) fractions of a target's half width and half
+#: height. Packs get a 3 × 3 grid; the lower row sits below and the upper rows above the grey
+#: electrode ring so that every sample aims at blue. The LED ring and the face are flat bands:
+#: three samples across at mid height.
+_GRID_SAMPLES = tuple((lat, vert) for vert in (-0.7, 0.5, 0.96) for lat in (-0.6, 0.0, 0.6))
+_BAND_SAMPLES = ((-0.6, 0.0), (0.0, 0.0), (0.6, 0.0))
+#: Geom groups that are rendered (mjvOption's default), hence able to hide a target.
+_VISIBLE_GROUPS = np.array([1, 1, 1, 0, 0, 0], dtype=np.uint8)
+_EDGE_CLIP = 0.5 * math.pi - 1e-3  # rad, keep tan() finite for targets beside the camera
+
+
+class GeometricVision:
+    """Vision from poses, field of view, range and ray-cast occlusion.
+
+    Args:
+        world: the world to observe (bound: every call reads its current ``MjData``).
+        config: the camera; the same config makes the rendered provider comparable.
+        rng: generator for the noise model; required only if ``config.noise`` is enabled.
+    """
+
+    def __init__(
+        self,
+        world: World,
+        config: CameraConfig | None = None,
+        rng: np.random.Generator | None = None,
+    ):
+        self.world = world
+        self.config = config or CameraConfig()
+        if self.config.noise.enabled and rng is None:
+            raise ValueError("config.noise is enabled, so pass rng=np.random.Generator")
+        self.rng = rng
+        self.projection = OmniProjection(self.config)
+        self.geometry = target_geometry(world)
+        n, k = world.config.n_robots, world.config.n_packs
+        self.n_robots = n
+        shapes = self.geometry.shapes
+        # Targets: LED of every robot, face of every robot, every pack.
+        self.target_geom = np.concatenate(
+            [world.led_geom, world.face_geom, world.pack_geom]
+        ).astype(np.int64)
+        self.target_cls = np.concatenate(
+            [np.full(n, LED), np.full(n, FACE), np.full(k, BATTERY)]
+        ).astype(np.int64)
+        self.target_owner = np.concatenate([np.arange(n), np.arange(n), np.full(k, -1)])
+        n_targets = len(self.target_geom)
+        shape_of = [shapes[c] for c in self.target_cls]
+        self._plate = np.array([s.plate for s in shape_of])
+        self._half_width = np.array([s.half_width for s in shape_of])
+        self._half_height = np.array([0.5 * s.height for s in shape_of])
+        self._rim = np.array([s.rim_offset for s in shape_of])
+        # Flattened occlusion samples: which target, lateral and vertical offset (m).
+        s_target, s_lat, s_dz = [], [], []
+        for t, shape in enumerate(shape_of):
+            for lat, vert in _samples_for(shape):
+                s_target.append(t)
+                s_lat.append(lat * shape.half_width)
+                s_dz.append(vert * 0.5 * shape.height)
+        self._s_target = np.array(s_target, dtype=np.int64)
+        self._s_lat = np.array(s_lat)[None, :, None]
+        self._s_dz = np.array(s_dz)[None, :]
+        self._s_geom = self.target_geom[self._s_target][None, :]
+        n_samples = len(s_target)
+        self._sample_to_target = np.zeros((n_samples, n_targets))
+        self._sample_to_target[np.arange(n_samples), self._s_target] = 1.0
+        self._samples_per_target = self._sample_to_target.sum(axis=0)
+        self._own = self.target_owner[None, :] == np.arange(n)[:, None]
+        self._cam_site = np.asarray(world.camera_site, dtype=np.int64)
+        self._exclude = [int(b) for b in world.chassis_body]
+        # Output buffers of the ray casts (reused every call).
+        self._ray_geom = np.zeros((n, n_samples), dtype=np.int32)
+        self._ray_dist = np.zeros((n, n_samples))
+        self._cutoff = float(self.config.max_range) + 1.0
+
+    # ------------------------------------------------------------------------------------
+    def observe(self) -> VisionFrame:
+        """What every robot sees in the world's current state."""
+        m, d = self.world.model, self.world.data
+        proj = self.projection
+        n = self.n_robots
+        cam = d.site_xpos[self._cam_site]  # (n, 3)
+        rot = d.site_xmat[self._cam_site].reshape(n, 3, 3)
+        centre = d.geom_xpos[self.target_geom]  # (T, 3)
+        gmat = d.geom_xmat[self.target_geom].reshape(-1, 3, 3)
+        diff = centre[None, :, :] - cam[:, None, :]  # (n, T, 3)
+        rh_world = np.hypot(diff[..., 0], diff[..., 1])
+        rh_world = np.maximum(rh_world, 1e-9)
+        # Lateral direction of each target as seen by each robot: perpendicular to the line of
+        # sight for cylinders, the plate's own width axis for plates.
+        lateral = np.zeros_like(diff)
+        lateral[..., 0] = -diff[..., 1] / rh_world
+        lateral[..., 1] = diff[..., 0] / rh_world
+        plate_axis = gmat[:, :, 1]  # (T, 3) y axis of each target geom
+        lateral = np.where(self._plate[None, :, None], plate_axis[None, :, :], lateral)
+
+        # --- occlusion: rays from each camera to every sample point ---------------------
+        st = self._s_target
+        rays = diff[:, st, :] + self._s_lat * lateral[:, st, :]
+        rays[..., 2] += self._s_dz
+        for i in range(n):
+            mujoco.mj_multiRay(
+                m,
+                d,
+                cam[i],
+                rays[i].ravel(),
+                _VISIBLE_GROUPS,
+                1,
+                self._exclude[i],
+                self._ray_geom[i],
+                self._ray_dist[i],
+                None,
+                rays.shape[1],
+                self._cutoff,
+            )
+        hit = self._ray_geom == self._s_geom
+        # Field of view, per sample: inside the frustum of the view that contains it.
+        local_s = np.einsum("nij,nki->nkj", rot, rays)
+        hit &= self._in_frustum(local_s)
+        visible_share = (hit @ self._sample_to_target) / self._samples_per_target
+
+        # --- measurements of each target's axis ----------------------------------------
+        local = np.einsum("nij,nti->ntj", rot, diff)
+        bearing = np.arctan2(local[..., 1], local[..., 0])
+        distance = np.hypot(local[..., 0], local[..., 1])
+        area = self._expected_area(local, rot, lateral, bearing, distance) * visible_share
+
+        seen = (area >= self.config.min_blob_area) & (distance <= self.config.max_range)
+        seen &= ~self._own
+        # Plates (faces) only show their front: normal (the body's x axis) towards the camera.
+        facing = np.einsum("ntk,tk->nt", diff, gmat[:, :, 0]) < 0.0
+        seen &= facing | ~self._plate[None, :]
+        apply_noise(self.config.noise, self.rng, bearing, distance, seen)
+        robot, target = np.nonzero(seen)
+        return frame_from_detections(
+            n,
+            robot,
+            self.target_cls[target],
+            bearing[robot, target],
+            distance[robot, target],
+            area[robot, target],
+        )
+
+    # ------------------------------------------------------------------------------------
+    def _in_frustum(self, local: np.ndarray) -> np.ndarray:
+        """Whether points (camera frame, any leading shape, last axis xyz) are in view."""
+        proj = self.projection
+        b = np.arctan2(local[..., 1], local[..., 0])
+        _, offset = proj.view_coordinates(b)
+        depth = np.hypot(local[..., 0], local[..., 1]) * np.cos(offset)
+        v = local[..., 2] / np.maximum(depth, 1e-9)
+        return (v >= proj.v_bottom) & (v <= proj.v_top)
+
+    def _expected_area(
+        self,
+        local: np.ndarray,
+        rot: np.ndarray,
+        lateral: np.ndarray,
+        bearing: np.ndarray,
+        distance: np.ndarray,
+    ) -> np.ndarray:
+        """Pixels a fully visible target would cover: its projected width × height.
+
+        Width: the two lateral edges projected onto the image plane of the view that sees the
+        target's axis. Height: from the far top rim to the near bottom rim (cylinders seen from
+        above), or from top to bottom edge (plates), clipped to the strip.
+        """
+        proj = self.projection
+        view, offset = proj.view_coordinates(bearing)
+        axis = proj.view_centres[view]
+        lat_local = np.einsum("nij,nti->ntj", rot, lateral) * self._half_width[None, :, None]
+        widths = []
+        for sign in (1.0, -1.0):
+            edge = local + sign * lat_local
+            eb = np.arctan2(edge[..., 1], edge[..., 0])
+            rel = np.clip(np.angle(np.exp(1j * (eb - axis))), -_EDGE_CLIP, _EDGE_CLIP)
+            widths.append(np.tan(rel))
+        du = np.abs(widths[0] - widths[1])
+        cos_off = np.cos(offset)
+        depth_far = np.maximum((distance + self._rim) * cos_off, 1e-9)
+        depth_near = np.maximum((distance - self._rim) * cos_off, 1e-9)
+        v_top = (local[..., 2] + self._half_height) / depth_far
+        v_bot = (local[..., 2] - self._half_height) / depth_near
+        dv = np.clip(np.minimum(v_top, proj.v_top) - np.maximum(v_bot, proj.v_bottom), 0.0, None)
+        return du * proj.px_per_u * dv * proj.px_per_v
+
+
+def _samples_for(shape: TargetShape) -> tuple[tuple[float, float], ...]:
+    return _GRID_SAMPLES if shape.cls == BATTERY else _BAND_SAMPLES
