@@ -40,14 +40,15 @@ class WorldConfig:
     Attributes:
         n_robots: number of Cyber Rodents (paper, simulation: 4).
         n_packs: number of battery packs (paper, simulation: 5; hardware: 6).
-        timestep: physics timestep in seconds. 0.01 s is the largest step whose trajectories
-            stay within 2 cm of a 5x finer reference over 10 s of scripted driving
-            (``benchmarks/timestep_study.py``).
+        timestep: physics timestep in seconds. 0.00625 s (16 substeps per 0.1 s control
+            step) is the largest step, of those that divide the control step, whose
+            trajectories stay within 2 cm of a 5x finer reference over 10 s of scripted
+            driving (``benchmarks/timestep_study.py``).
     """
 
     n_robots: int = 4
     n_packs: int = 5
-    timestep: float = 0.01
+    timestep: float = 0.00625
 
     def __post_init__(self) -> None:
         max_robots, max_packs = max_counts()
@@ -90,6 +91,11 @@ def max_counts() -> tuple[int, int]:
     return max_robots, max_packs
 
 
+def dock_hold_name(robot: int) -> str:
+    """Name of robot ``robot``'s docking-hold weld (an equality constraint of the world)."""
+    return f"dock_hold_{robot}"
+
+
 def build_mjcf(n_robots: int, n_packs: int, timestep: float) -> mjcf.RootElement:
     """The field's MJCF tree with ``n_robots`` robots and ``n_packs`` packs at the origin."""
     arena = mjcf.from_path(str(asset_path(C.ARENA_XML)))
@@ -101,6 +107,16 @@ def build_mjcf(n_robots: int, n_packs: int, timestep: float) -> mjcf.RootElement
         robot.model = f"{C.ROBOT_MODEL_PREFIX}_{i}"
         frame = arena.attach(robot)
         frame.add("freejoint")
+        # Docking hold (issue 4, cyber_rodent/survival.py): an inactive weld of the chassis to
+        # the world. The survival mechanics switch it on while the robot recharges (setting
+        # its relative pose to the pose at docking) and off when recharging ends. Inactive
+        # equality constraints cost nothing in the solver.
+        arena.equality.add(
+            "weld",
+            name=dock_hold_name(i),
+            body1=robot.find("body", C.ROBOT_ROOT_BODY),
+            active=False,
+        )
     for j in range(n_packs):
         pack = mjcf.from_path(pack_file)
         pack.model = f"{C.PACK_MODEL_PREFIX}_{j}"
@@ -118,8 +134,9 @@ class World:
 
     def __init__(self, config: WorldConfig | None = None, rng: np.random.Generator | None = None):
         self.config = config or WorldConfig()
-        self.mjcf_model = build_mjcf(self.config.n_robots, self.config.n_packs,
-                                     self.config.timestep)
+        self.mjcf_model = build_mjcf(
+            self.config.n_robots, self.config.n_packs, self.config.timestep
+        )
         self.physics = mjcf.Physics.from_mjcf_model(self.mjcf_model)
         self.model: mujoco.MjModel = self.physics.model.ptr
         self.data: mujoco.MjData = self.physics.data.ptr
@@ -160,8 +177,10 @@ class World:
             for name, _, _ in C.RANGE_SENSORS:
                 sid = obj_id(mujoco.mjtObj.mjOBJ_SENSOR, p + name)
                 sensor_adr.append(int(m.sensor_adr[sid]))
-            motor_ids += [obj_id(mujoco.mjtObj.mjOBJ_ACTUATOR, p + C.LEFT_MOTOR),
-                          obj_id(mujoco.mjtObj.mjOBJ_ACTUATOR, p + C.RIGHT_MOTOR)]
+            motor_ids += [
+                obj_id(mujoco.mjtObj.mjOBJ_ACTUATOR, p + C.LEFT_MOTOR),
+                obj_id(mujoco.mjtObj.mjOBJ_ACTUATOR, p + C.RIGHT_MOTOR),
+            ]
             self.chassis_body[i] = obj_id(mujoco.mjtObj.mjOBJ_BODY, p + C.ROBOT_ROOT_BODY)
             root = int(m.body_jntadr[m.body_rootid[self.chassis_body[i]]])
             if root < 0 or m.jnt_type[root] != mujoco.mjtJoint.mjJNT_FREE:
@@ -182,17 +201,30 @@ class World:
         self.geom_robot = np.full(m.ngeom, -1, dtype=np.int64)
         root_of_body = m.body_rootid
         for i in range(n):
-            self.geom_robot[root_of_body[m.geom_bodyid] == self.chassis_body[i]] = i
+            robot_root = root_of_body[self.chassis_body[i]]
+            self.geom_robot[root_of_body[m.geom_bodyid] == robot_root] = i
 
         self.pack_body = np.array(
-            [obj_id(mujoco.mjtObj.mjOBJ_BODY, C.pack_prefix(j) + C.PACK_BODY)
-             for j in range(self.config.n_packs)], dtype=np.int64)
+            [
+                obj_id(mujoco.mjtObj.mjOBJ_BODY, C.pack_prefix(j) + C.PACK_BODY)
+                for j in range(self.config.n_packs)
+            ],
+            dtype=np.int64,
+        )
         self.pack_geom = np.array(
-            [obj_id(mujoco.mjtObj.mjOBJ_GEOM, C.pack_prefix(j) + C.PACK_GEOM)
-             for j in range(self.config.n_packs)], dtype=np.int64)
+            [
+                obj_id(mujoco.mjtObj.mjOBJ_GEOM, C.pack_prefix(j) + C.PACK_GEOM)
+                for j in range(self.config.n_packs)
+            ],
+            dtype=np.int64,
+        )
         self.electrode_geom = np.array(
-            [obj_id(mujoco.mjtObj.mjOBJ_GEOM, C.pack_prefix(j) + C.PACK_ELECTRODE_GEOM)
-             for j in range(self.config.n_packs)], dtype=np.int64)
+            [
+                obj_id(mujoco.mjtObj.mjOBJ_GEOM, C.pack_prefix(j) + C.PACK_ELECTRODE_GEOM)
+                for j in range(self.config.n_packs)
+            ],
+            dtype=np.int64,
+        )
         self.top_camera = obj_id(mujoco.mjtObj.mjOBJ_CAMERA, C.TOP_CAMERA)
         # Wheel radius and top speed read from the compiled model (they must match constants).
         wheel_geom = obj_id(mujoco.mjtObj.mjOBJ_GEOM, C.robot_prefix(0) + "left_wheel_contact")
@@ -211,10 +243,12 @@ class World:
         """
         mujoco.mj_resetData(self.model, self.data)
         n, k = self.config.n_robots, self.config.n_packs
-        radii = np.concatenate([
-            np.full(n, C.BODY_RADIUS + _PLACEMENT_MARGIN),
-            np.full(k, C.PACK_RADIUS + _PLACEMENT_MARGIN),
-        ])
+        radii = np.concatenate(
+            [
+                np.full(n, C.BODY_RADIUS + _PLACEMENT_MARGIN),
+                np.full(k, C.PACK_RADIUS + _PLACEMENT_MARGIN),
+            ]
+        )
         centres = place_discs(radii, C.FIELD_SIZE / 2, rng)
         yaw = rng.uniform(-math.pi, math.pi, size=n)
         for i in range(n):
@@ -228,10 +262,10 @@ class World:
     def set_robot_pose(self, i: int, x: float, y: float, yaw: float) -> None:
         """Put robot ``i`` at rest on the floor at (x, y) facing ``yaw`` (call mj_forward after)."""
         a = int(self.root_qpos_adr[i])
-        self.data.qpos[a:a + 3] = (x, y, 0.0)
-        self.data.qpos[a + 3:a + 7] = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+        self.data.qpos[a : a + 3] = (x, y, 0.0)
+        self.data.qpos[a + 3 : a + 7] = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
         v = int(self.root_qvel_adr[i])
-        self.data.qvel[v:v + 6] = 0.0
+        self.data.qvel[v : v + 6] = 0.0
 
     def set_pack_position(self, j: int, x: float, y: float) -> None:
         """Move static pack ``j`` (call mj_forward after)."""
@@ -292,7 +326,8 @@ class World:
         else:
             self.led_on[robot] = bool(on)
         self.model.geom_rgba[self.led_geom] = np.where(
-            self.led_on[:, None], LED_ON_RGBA, LED_OFF_RGBA)
+            self.led_on[:, None], LED_ON_RGBA, LED_OFF_RGBA
+        )
 
     @property
     def time(self) -> float:
@@ -322,9 +357,7 @@ def place_discs(radii: np.ndarray, half_size: float, rng: np.random.Generator) -
             raise ValueError(f"a disc of radius {r:.3f} m does not fit in the field")
         for _ in range(_PLACEMENT_ATTEMPTS):
             c = rng.uniform(-lim, lim, size=2)
-            if not placed or np.all(
-                np.hypot(*(centres[placed] - c).T) >= radii[placed] + r
-            ):
+            if not placed or np.all(np.hypot(*(centres[placed] - c).T) >= radii[placed] + r):
                 centres[idx] = c
                 placed.append(int(idx))
                 break

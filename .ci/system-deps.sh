@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Debian packages for headless off-screen rendering (EGL with Mesa's software rasteriser).
+# Idempotent: installs only what is missing. Needs root (or sudo) on a fresh machine.
+set -euo pipefail
+pkgs=(libegl1 libegl-mesa0 libgl1-mesa-dri libgles2)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "installing Debian packages for headless rendering: ${missing[*]}"
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

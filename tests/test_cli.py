@@ -1,0 +1,77 @@
+"""The command line: snapshot writes a PNG; bad input gives one clear line, no traceback."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import imageio.v3 as iio
+import pytest
+
+from cyber_rodent.assets import ASSETS_ENV_VAR
+
+
+def run_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "cyber_rodent.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, **(env or {})},
+    )
+
+
+def test_snapshot_writes_a_png(tmp_path: Path) -> None:
+    out = tmp_path / "field.png"
+    result = run_cli("snapshot", "--out", str(out), "--seed", "3", "--size", "200")
+    assert result.returncode == 0, result.stderr
+    image = iio.imread(out)
+    assert image.shape == (200, 200, 3)
+    assert not list(tmp_path.glob(".*"))  # no temp file left behind
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--robots", "0"), "n_robots"),
+        (("--robots", "-1"), "n_robots"),
+        (("--robots", "1000"), "n_robots"),
+        (("--packs", "-2"), "n_packs"),
+        (("--robots", "many"), "--robots must be an integer"),
+    ],
+)
+def test_snapshot_bad_counts(tmp_path: Path, args: tuple, message: str) -> None:
+    out = tmp_path / "x.png"
+    result = run_cli("snapshot", "--out", str(out), *args)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
+    assert not out.exists()
+
+
+def test_snapshot_unwritable_out(tmp_path: Path) -> None:
+    result = run_cli("snapshot", "--out", str(tmp_path / "missing" / "x.png"))
+    assert result.returncode == 2 and "does not exist" in result.stderr
+    assert "Traceback" not in result.stderr
+    result = run_cli("snapshot", "--out", str(tmp_path))
+    assert result.returncode == 2 and "is a directory" in result.stderr
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root can write anywhere")
+def test_snapshot_read_only_directory(tmp_path: Path) -> None:
+    tmp_path.chmod(0o500)
+    try:
+        result = run_cli("snapshot", "--out", str(tmp_path / "x.png"))
+    finally:
+        tmp_path.chmod(0o700)
+    assert result.returncode == 2 and "not writable" in result.stderr
+
+
+def test_snapshot_missing_asset(tmp_path: Path) -> None:
+    result = run_cli(
+        "snapshot", "--out", str(tmp_path / "x.png"), env={ASSETS_ENV_VAR: str(tmp_path)}
+    )
+    assert result.returncode == 2
+    assert "missing asset" in result.stderr and "Traceback" not in result.stderr

@@ -1,0 +1,174 @@
+"""The assembled model: what it contains, that it matches the constants, and placement."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from cyber_rodent import constants as C
+from cyber_rodent.assets import ASSETS_ENV_VAR, AssetNotFoundError, asset_path
+from cyber_rodent.world import World, WorldConfig, max_counts, place_discs
+
+
+@pytest.fixture(scope="module")
+def world() -> World:
+    return World(WorldConfig(), np.random.default_rng(0))
+
+
+def test_default_world_counts(world: World) -> None:
+    m = world.model
+    assert world.config.n_robots == 4 and world.config.n_packs == 5
+    # 4 free joints + 8 wheel hinges; 8 motors; 4 x 8 rangefinders.
+    assert m.njnt == 12 and m.nu == 8 and m.nsensor == 32
+    assert sum(m.jnt_type == mujoco.mjtJoint.mjJNT_FREE) == 4
+
+
+def test_robot_matches_design_numbers(world: World) -> None:
+    m = world.model
+    root = m.body_rootid[world.chassis_body[0]]
+    assert m.body_subtreemass[root] == pytest.approx(C.ROBOT_MASS, abs=1e-9)
+    assert world.wheel_radius == pytest.approx(C.WHEEL_RADIUS)
+    assert world.max_wheel_omega * world.wheel_radius == pytest.approx(C.TOP_SPEED, rel=1e-6)
+    chassis = world.chassis_geom[0]
+    assert 2 * m.geom_size[chassis, 0] == pytest.approx(C.BODY_LENGTH)
+    # Half wheel base: wheel bodies at ±HALF_WHEEL_BASE from the centre line.
+    for name in ("left_wheel_body", "right_wheel_body"):
+        b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, C.robot_prefix(0) + name)
+        assert abs(m.body_pos[b, 1]) == pytest.approx(C.HALF_WHEEL_BASE)
+    # Centre of mass low: below a quarter of the body's height above the floor.
+    mujoco.mj_forward(m, world.data)
+    assert world.data.subtree_com[root, 2] < 0.05
+
+
+def test_every_constant_name_exists(world: World) -> None:
+    m = world.model
+    p = C.robot_prefix(0)
+    for kind, names in [
+        (mujoco.mjtObj.mjOBJ_GEOM, [C.CHASSIS_GEOM, C.LED_GEOM, C.FACE_GEOM, C.TEETH_GEOM]),
+        (mujoco.mjtObj.mjOBJ_SITE, [C.IR_PORT_SITE, C.CAMERA_MOUNT_SITE]),
+        (mujoco.mjtObj.mjOBJ_JOINT, [C.LEFT_WHEEL_JOINT, C.RIGHT_WHEEL_JOINT]),
+        (mujoco.mjtObj.mjOBJ_ACTUATOR, [C.LEFT_MOTOR, C.RIGHT_MOTOR]),
+        (mujoco.mjtObj.mjOBJ_SENSOR, [n for n, _, _ in C.RANGE_SENSORS]),
+        (mujoco.mjtObj.mjOBJ_CAMERA, [C.CHASE_CAMERA, *C.OMNI_CAMERAS]),
+    ]:
+        for name in names:
+            assert mujoco.mj_name2id(m, kind, p + name) >= 0, name
+    for name in (C.FLOOR_GEOM, *C.WALL_GEOMS):
+        assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name) >= 0
+    assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, C.pack_prefix(0) + C.PACK_GEOM) >= 0
+
+
+def test_range_sensor_directions_match_constants(world: World) -> None:
+    """Each rangefinder site points along the bearing its constant says."""
+    m, d = world.model, world.data
+    world.set_robot_pose(0, 0.0, 0.0, 0.0)
+    mujoco.mj_forward(m, d)
+    for name, bearing_deg, _ in C.RANGE_SENSORS:
+        s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, C.robot_prefix(0) + name)
+        z_axis = d.site_xmat[s].reshape(3, 3)[:, 2]
+        expected = np.array(
+            [math.cos(math.radians(bearing_deg)), math.sin(math.radians(bearing_deg)), 0.0]
+        )
+        np.testing.assert_allclose(z_axis, expected, atol=1e-6)
+
+
+def test_ir_port_front_right_pointing_forward(world: World) -> None:
+    m = world.model
+    s = world.ir_port_site[0]
+    x, y, _ = m.site_pos[s]
+    assert x > 0.1 and -0.04 < y < 0  # front, slightly right of centre
+    mujoco.mj_forward(m, world.data)
+
+
+def test_packs_are_static_and_make_no_contacts(world: World) -> None:
+    """Packs are welded to the world: no joints, and no pack-floor contacts at rest."""
+    m = world.model
+    for b in world.pack_body:
+        assert m.body_jntnum[b] == 0 and m.body_weldid[b] == 0
+    world.reset(np.random.default_rng(3))
+    world.step(50)
+    pack_geoms = set(world.pack_geom) | set(world.electrode_geom)
+    for c in world.data.contact[: world.data.ncon]:
+        assert c.geom1 not in pack_geoms and c.geom2 not in pack_geoms
+
+
+def test_at_rest_each_robot_has_exactly_four_floor_contacts() -> None:
+    """Two wheels and the two rear casters; no spurious contacts (front caster, chassis)."""
+    w = World(WorldConfig(n_robots=4, n_packs=5), np.random.default_rng(5))
+    w.step(100)
+    assert w.data.ncon == 4 * 4
+    robots = w.geom_robot[w.data.contact.geom[: w.data.ncon]].max(axis=1)
+    assert np.bincount(robots, minlength=4).tolist() == [4, 4, 4, 4]
+
+
+def test_placement_is_seeded_and_non_overlapping() -> None:
+    a = World(WorldConfig(), np.random.default_rng(11))
+    b = World(WorldConfig(), np.random.default_rng(11))
+    c = World(WorldConfig(), np.random.default_rng(12))
+    np.testing.assert_array_equal(a.poses(), b.poses())
+    np.testing.assert_array_equal(a.pack_positions(), b.pack_positions())
+    assert not np.allclose(a.poses(), c.poses())
+    pts = np.vstack([a.poses()[:, :2], a.pack_positions()])
+    radii = np.array([C.BODY_RADIUS] * 4 + [C.PACK_RADIUS] * 5)
+    for i in range(len(pts)):
+        for j in range(i + 1, len(pts)):
+            assert np.hypot(*(pts[i] - pts[j])) >= radii[i] + radii[j]
+    assert np.all(np.abs(pts) <= C.FIELD_SIZE / 2 - C.PACK_RADIUS)
+
+
+def test_reset_redraws_placement_without_recompiling() -> None:
+    w = World(WorldConfig(), np.random.default_rng(0))
+    model = w.model
+    first = w.poses().copy()
+    w.reset(np.random.default_rng(1))
+    assert w.model is model
+    assert not np.allclose(first, w.poses())
+
+
+def test_place_discs_hand_case() -> None:
+    """Two discs of radius 0.5 in a 1x1 half-size box can only sit in opposite corners."""
+    rng = np.random.default_rng(0)
+    centres = place_discs(np.array([0.1, 0.1]), 1.0, rng)
+    assert np.hypot(*(centres[0] - centres[1])) >= 0.2
+    with pytest.raises(ValueError, match="does not fit"):
+        place_discs(np.array([1.5]), 1.0, rng)
+
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"n_robots": 0}, "n_robots"),
+        ({"n_robots": -2}, "n_robots"),
+        ({"n_robots": 10_000}, "n_robots"),
+        ({"n_robots": 2.5}, "n_robots"),
+        ({"n_packs": -1}, "n_packs"),
+        ({"n_packs": 100_000}, "n_packs"),
+        ({"timestep": 0.0}, "timestep"),
+        ({"timestep": float("nan")}, "timestep"),
+    ],
+)
+def test_bad_world_config_names_the_field(kwargs: dict, field: str) -> None:
+    with pytest.raises(ValueError, match=field):
+        WorldConfig(**kwargs)
+
+
+def test_counts_that_fit_alone_but_not_together() -> None:
+    max_robots, max_packs = max_counts()
+    with pytest.raises(ValueError, match="do not fit"):
+        WorldConfig(n_robots=max_robots, n_packs=max_packs)
+
+
+def test_nan_wheel_command_is_rejected(world: World) -> None:
+    with pytest.raises(ValueError, match="finite"):
+        world.set_wheel_speeds(np.array([np.nan, 0, 0, 0]), np.zeros(4))
+
+
+def test_missing_asset_gives_clear_error(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv(ASSETS_ENV_VAR, str(tmp_path))
+    with pytest.raises(AssetNotFoundError, match="missing asset 'arena.xml'"):
+        asset_path(C.ARENA_XML)
+    with pytest.raises(AssetNotFoundError):
+        World(WorldConfig())
