@@ -106,9 +106,10 @@ class NeuralController:
         self.max_recharge_steps = float(max_recharge_steps)
         self.inputs = np.zeros((n_robots, N_INPUTS))
         self.inputs[:, IN_BIAS] = 1.0
-        self.activations = np.zeros((n_robots, N_OUTPUTS))
         self._masked = np.zeros((n_robots, N_OUTPUTS))
+        self._unavailable = np.zeros(n_robots, dtype=bool)
         self._column = np.zeros((n_robots, N_OUTPUTS, 1))
+        self.activations = self._column[:, :, 0]
         self.behaviour = np.zeros(n_robots, dtype=np.intp)
         self.led = np.zeros(n_robots, dtype=bool)
         self._recharge_out = np.zeros(n_robots)
@@ -147,7 +148,6 @@ class NeuralController:
         n = weights.shape[0]
         w = weights[:, SELECTION].reshape(n, N_OUTPUTS, N_INPUTS)
         np.matmul(w, inputs[:, :, None], out=self._column)
-        self.activations[:] = self._column[:, :, 0]
         return self.activations
 
     def select(
@@ -172,8 +172,11 @@ class NeuralController:
         act = self.compute_activations(weights, self.inputs if inputs is None else inputs)
         masked = self._masked
         masked[:] = act
-        masked[~np.asarray(mate_available, dtype=bool), MATE] = -np.inf
-        masked[~np.asarray(forage_available, dtype=bool), FORAGE] = -np.inf
+        unavailable = self._unavailable
+        np.logical_not(mate_available, out=unavailable)
+        np.copyto(masked[:, MATE], -np.inf, where=unavailable)
+        np.logical_not(forage_available, out=unavailable)
+        np.copyto(masked[:, FORAGE], -np.inf, where=unavailable)
         np.argmax(masked, axis=1, out=self.behaviour)
         np.greater(act[:, MATE], act[:, FORAGE], out=self.led)
         return self.behaviour, self.led

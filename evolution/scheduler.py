@@ -1,0 +1,424 @@
+"""Time sharing of virtual agents on physical robots: the EE scheduler and the CE baseline.
+
+Both schedulers are pure logic. They do not step physics; a runner steps the world and reports,
+once per control step, what happened to each robot's active agent, as (n_robots,) arrays passed
+to :meth:`TimeSharingScheduler.on_step`: energy after the step, death, a battery capture, and a
+mating with another robot's active agent.
+The scheduler answers with whose controller each robot runs next (:attr:`active_weights`) and
+which robots switched agent (:attr:`switched`), so the runner can load the new agent's energy into
+the world. This narrow interface lets the rules be tested with scripted event sequences, and keeps
+the per-step cost to a handful of vectorised numpy operations on (n_robots,) arrays; Python-level
+work happens only on the rare steps with an event.
+
+Rules (paper §2, §3.3, §4.1; DESIGN.md §5), common to both methods:
+
+- Each robot runs one of its ``subpopulation_size`` agents at a time, in round-robin order,
+  starting from slot 0. The active agent's age, energy and batteries are tracked per step.
+- A robot switches to the next agent after ``time_sharing_steps`` steps of the current one, after
+  a successful mating, when the agent dies, or when it completes its lifetime.
+- At a mating, both agents store the other's genome and its fitness at that moment,
+  batteries / (age / 100), computed after the step's own capture is counted.
+- Within one step: ages, energies and captures are updated first, then matings are recorded, then
+  each robot (in index order) handles its slot's end. Death takes precedence over a completed
+  lifetime: an agent whose energy reaches 0 on its last step died.
+
+**EE** (:class:`EmbodiedEvolution`): when an agent completes its lifetime, its slot's generation
+counter rises and the agent is replaced by its offspring if it mated (see
+:func:`evolution.reproduction.make_offspring`, the unused child goes to the robot's spare list),
+or by a spare-list or random genome if it did not. An agent that died is replaced the same way,
+and its slot's counter does not rise. Each robot has its own random generator (spawned from the
+run's), because each robot makes its reproduction decisions alone; the robots are asynchronous.
+
+**CE** (:class:`CentralisedEvolution`): an agent that completes its lifetime or dies is finished
+for this generation and leaves the round robin. A robot whose agents have all finished idles
+(:attr:`active` is False: the runner parks it with its LED off and no Mate signal) until every
+robot has finished; then the whole population is replaced by tournament selection
+(:func:`evolution.reproduction.next_generation`) and every robot restarts at slot 0.
+
+Schedulers are picklable with their full state (agents, spare lists, counters, random generator
+states, statistics), which is what checkpoints store.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from evolution.agent import MatingRecord, Origin, VirtualAgent
+from evolution.agent import fitness as fitness_rule
+from evolution.config import GENOME_LENGTH, EvolutionConfig
+from evolution.genome import Genome
+from evolution.reproduction import draw_replacement, make_offspring, next_generation
+from evolution.stats import StatisticsRecorder
+
+#: ``mated_with`` value for "no mating this step" (as in the survival world's events).
+NO_PARTNER = -1
+
+
+class TimeSharingScheduler:
+    """Round-robin time sharing shared by the EE and CE schedulers (see the module docstring).
+
+    Args:
+        config: the evolution configuration.
+        rng: the run's random generator; it draws the initial population and then stays with the
+            scheduler (subclasses may spawn children from it).
+        initial_genomes: optional initial population, robot-major (robot ``r`` gets
+            ``initial_genomes[r * k : (r + 1) * k]``); random U[-1, 1] genomes if None.
+
+    Attributes:
+        active_weights: (n_robots, 39) genome of each robot's active agent (read-only view).
+        active_energy: (n_robots,) energy of each robot's active agent; after a switch, the
+            energy the runner must load into the world.
+        active_slot: (n_robots,) slot index of each robot's active agent.
+        active: (n_robots,) bool, the robot runs an agent (always True in EE).
+        switched: (n_robots,) bool, the robot's active agent changed in the last
+            :meth:`on_step` (all True before the first step, so a runner loads every agent the
+            same way).
+        slot_generation: (n_robots, k) generation counter of each slot.
+        steps: control steps processed.
+        stats: the per-generation statistics.
+    """
+
+    def __init__(
+        self,
+        config: EvolutionConfig,
+        rng: np.random.Generator,
+        initial_genomes: Sequence[Genome] | None = None,
+    ) -> None:
+        if not isinstance(config, EvolutionConfig):
+            raise ValueError(f"config must be an EvolutionConfig, got {type(config)!r}")
+        if not isinstance(rng, np.random.Generator):
+            raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng)!r}")
+        self.config = config
+        n, k = config.n_robots, config.subpopulation_size
+        self.n_robots, self.subpopulation_size = n, k
+        if initial_genomes is None:
+            genomes = [Genome.random(rng, config.genetics) for _ in range(n * k)]
+        else:
+            genomes = list(initial_genomes)
+            if len(genomes) != n * k or not all(isinstance(g, Genome) for g in genomes):
+                raise ValueError(
+                    f"initial_genomes must be {n * k} Genome objects (population_size), "
+                    f"got {len(genomes)}"
+                )
+        self._rng = rng
+        self.slots: list[list[VirtualAgent]] = [
+            [VirtualAgent(genomes[r * k + s], float(config.initial_energy)) for s in range(k)]
+            for r in range(n)
+        ]
+        self.slot_generation = np.zeros((n, k), dtype=np.int64)
+        self.stats = StatisticsRecorder()
+        self.steps = 0
+
+        self.active_slot = np.zeros(n, dtype=np.intp)
+        self.active = np.ones(n, dtype=bool)
+        self.switched = np.ones(n, dtype=bool)
+        self._weights = np.zeros((n, GENOME_LENGTH))
+        self.active_energy = np.zeros(n)
+        self._age = np.zeros(n, dtype=np.int64)
+        self._batteries = np.zeros(n, dtype=np.int64)
+        self._matings = np.zeros(n, dtype=np.int64)
+        self._slice = np.zeros(n, dtype=np.int64)
+        self._end = np.zeros(n, dtype=bool)
+        for r in range(n):
+            self._load(r)
+
+    # --- views ----------------------------------------------------------------------------
+    @property
+    def active_weights(self) -> np.ndarray:
+        view = self._weights.view()
+        view.flags.writeable = False
+        return view
+
+    @property
+    def active_age(self) -> np.ndarray:
+        """(n_robots,) age of each robot's active agent (a copy)."""
+        return self._age.copy()
+
+    @property
+    def slice_steps(self) -> np.ndarray:
+        """(n_robots,) steps the active agent has run in its current time-sharing slot (a copy)."""
+        return self._slice.copy()
+
+    def agent(self, robot: int, slot: int) -> VirtualAgent:
+        """The agent in ``slot`` of ``robot``, with its record up to date."""
+        if self.active[robot] and self.active_slot[robot] == slot:
+            self._store(robot)
+        return self.slots[robot][slot]
+
+    def active_agent(self, robot: int) -> VirtualAgent | None:
+        """The agent ``robot`` runs now (None if the robot idles)."""
+        if not self.active[robot]:
+            return None
+        return self.agent(robot, int(self.active_slot[robot]))
+
+    def population(self) -> list[Genome]:
+        """All genomes, robot-major."""
+        return [agent.genome for slots in self.slots for agent in slots]
+
+    # --- the per-step update ---------------------------------------------------------------
+    def on_step(
+        self,
+        energy: np.ndarray,
+        died: np.ndarray,
+        captured: np.ndarray,
+        mated_with: np.ndarray,
+    ) -> np.ndarray:
+        """Apply one control step's outcome for every robot; return :attr:`switched`.
+
+        The arrays are read, never kept, so a runner can pass the same buffers every step (e.g.
+        the survival world's per-step event arrays).
+
+        Args:
+            energy: (n,) float, each active agent's energy after the step.
+            died: (n,) bool, the energy reached 0 this step.
+            captured: (n,) bool, the robot docked onto a battery pack this step.
+            mated_with: (n,) int, the robot whose active agent this robot's active agent mated
+                with this step, or :data:`NO_PARTNER`; must be symmetric.
+
+        Returns:
+            The :attr:`switched` buffer (overwritten by the next call).
+
+        Raises:
+            ValueError: inconsistent events (an asymmetric mating, a mating with itself, an
+                event for an idle robot).
+        """
+        cfg = self.config
+        active = self.active
+        self.switched[:] = False
+        self.steps += 1
+        self._age += active
+        self._slice += active
+        np.copyto(self.active_energy, energy, where=active)
+        self._batteries += captured & active
+        any_mating = bool(mated_with.max() >= 0)
+        if not (
+            any_mating
+            or died.any()
+            or self._slice.max() >= cfg.time_sharing_steps
+            or self._age.max() >= cfg.lifetime_steps
+        ):
+            return self.switched
+        if not active.all() and (died[~active].any() or captured[~active].any()):
+            raise ValueError("an event (death or capture) was reported for an idle robot")
+        if any_mating:
+            self._record_matings(mated_with)
+        end = self._end
+        np.greater_equal(self._slice, cfg.time_sharing_steps, out=end)
+        end |= self._age >= cfg.lifetime_steps
+        end |= mated_with >= 0
+        end |= died
+        end &= active
+        for robot in np.flatnonzero(end):
+            self._end_slot(int(robot), bool(died[robot]))
+        self._after_step()
+        return self.switched
+
+    def _record_matings(self, mated: np.ndarray) -> None:
+        n = self.n_robots
+        partners = np.flatnonzero(mated >= 0)
+        for r in partners:
+            m = int(mated[r])
+            if not 0 <= m < n or m == r or mated[m] != r:
+                raise ValueError(
+                    f"mated_with must pair robots symmetrically (robot {r} -> {m}, "
+                    f"robot {m if 0 <= m < n else '?'} -> "
+                    f"{int(mated[m]) if 0 <= m < n else '?'})"
+                )
+            if not (self.active[r] and self.active[m]):
+                raise ValueError(f"mating between robots {r} and {m} involves an idle robot")
+        unit = self.config.fitness_time_unit
+        fitness = {int(r): fitness_rule(self._batteries[r], self._age[r], unit) for r in partners}
+        for r in partners:
+            m = int(mated[r])
+            partner_agent = self.slots[m][int(self.active_slot[m])]
+            own_agent = self.slots[r][int(self.active_slot[r])]
+            own_agent.partners.append(MatingRecord(partner_agent.genome, fitness[m]))
+            self._matings[r] += 1
+
+    def _end_slot(self, robot: int, died: bool) -> None:
+        slot = int(self.active_slot[robot])
+        agent = self._store(robot)
+        generation = int(self.slot_generation[robot, slot])
+        if died:
+            agent.dead = True
+            self.stats.record_death(generation)
+            self._on_death(robot, slot)
+        elif agent.age >= self.config.lifetime_steps:
+            self.stats.record_full_life(generation, agent.batteries, agent.matings)
+            self._on_full_life(robot, slot)
+        self._advance(robot)
+
+    # --- moving counters between the per-robot arrays and the agent objects --------------
+    def _store(self, robot: int) -> VirtualAgent:
+        agent = self.slots[robot][int(self.active_slot[robot])]
+        agent.age = int(self._age[robot])
+        agent.energy = float(self.active_energy[robot])
+        agent.batteries = int(self._batteries[robot])
+        agent.matings = int(self._matings[robot])
+        return agent
+
+    def _load(self, robot: int) -> None:
+        agent = self.slots[robot][int(self.active_slot[robot])]
+        self._weights[robot] = agent.genome.weights
+        self.active_energy[robot] = agent.energy
+        self._age[robot] = agent.age
+        self._batteries[robot] = agent.batteries
+        self._matings[robot] = agent.matings
+        self._slice[robot] = 0
+        self.switched[robot] = True
+
+    def _new_agent(self, robot: int, slot: int, genome: Genome, origin: Origin) -> None:
+        generation = int(self.slot_generation[robot, slot])
+        self.slots[robot][slot] = VirtualAgent(
+            genome, float(self.config.initial_energy), generation=generation, origin=origin
+        )
+        self.stats.record_birth(generation, origin)
+
+    # --- method-specific hooks -------------------------------------------------------------
+    def _on_death(self, robot: int, slot: int) -> None:
+        raise NotImplementedError
+
+    def _on_full_life(self, robot: int, slot: int) -> None:
+        raise NotImplementedError
+
+    def _advance(self, robot: int) -> None:
+        raise NotImplementedError
+
+    def _after_step(self) -> None:
+        """Called once per step after every robot's slot end was handled."""
+
+
+class EmbodiedEvolution(TimeSharingScheduler):
+    """The paper's embodied evolution: local, asynchronous reproduction through mating.
+
+    Attributes:
+        spare_lists: per robot, the unused children of earlier reproductions.
+        robot_rngs: per robot, the generator of its reproduction and replacement draws.
+    """
+
+    def __init__(
+        self,
+        config: EvolutionConfig,
+        rng: np.random.Generator,
+        initial_genomes: Sequence[Genome] | None = None,
+    ) -> None:
+        super().__init__(config, rng, initial_genomes)
+        self.spare_lists: list[list[Genome]] = [[] for _ in range(self.n_robots)]
+        self.robot_rngs: list[np.random.Generator] = rng.spawn(self.n_robots)
+        self._next_to_close = 0
+
+    def completed_generations(self) -> int:
+        """Generations every slot has completed (the closed rows of :attr:`stats`)."""
+        return int(self.slot_generation.min())
+
+    def _on_death(self, robot: int, slot: int) -> None:
+        genome, origin = draw_replacement(
+            self.spare_lists[robot], self.robot_rngs[robot], self.config.genetics
+        )
+        self._new_agent(robot, slot, genome, origin)
+
+    def _on_full_life(self, robot: int, slot: int) -> None:
+        cfg = self.config
+        agent = self.slots[robot][slot]
+        generation = int(self.slot_generation[robot, slot])
+        partner = agent.fittest_partner()
+        rng = self.robot_rngs[robot]
+        if partner is None:
+            genome, origin = draw_replacement(self.spare_lists[robot], rng, cfg.genetics)
+        else:
+            result = make_offspring(
+                agent.genome, agent.fitness(cfg.fitness_time_unit), partner, rng, cfg.genetics
+            )
+            self.spare_lists[robot].append(result.spare)
+            self.stats.record_reproduction(generation, result.crossover)
+            genome, origin = result.offspring, Origin.OFFSPRING
+        self.slot_generation[robot, slot] = generation + 1
+        self._new_agent(robot, slot, genome, origin)
+        while self.slot_generation.min() > self._next_to_close:
+            spare = sum(len(spares) for spares in self.spare_lists)
+            self.stats.close(self._next_to_close, spare)
+            self._next_to_close += 1
+
+    def _advance(self, robot: int) -> None:
+        self.active_slot[robot] = (self.active_slot[robot] + 1) % self.subpopulation_size
+        self._load(robot)
+
+
+class CentralisedEvolution(TimeSharingScheduler):
+    """The centralised GA baseline (paper §4.1): same time sharing, generational replacement.
+
+    Attributes:
+        generation: the population's current generation.
+        finished: (n_robots, k) bool, the slot's agent has completed its lifetime or died.
+    """
+
+    def __init__(
+        self,
+        config: EvolutionConfig,
+        rng: np.random.Generator,
+        initial_genomes: Sequence[Genome] | None = None,
+    ) -> None:
+        super().__init__(config, rng, initial_genomes)
+        self.generation = 0
+        self.finished = np.zeros((self.n_robots, self.subpopulation_size), dtype=bool)
+
+    def completed_generations(self) -> int:
+        """Generations the whole population has completed."""
+        return self.generation
+
+    def ce_fitness(self, agent: VirtualAgent) -> float:
+        """Selection fitness: batteries / (age / 100) if the agent mated (and, by default,
+        survived its lifetime), else 0."""
+        cfg = self.config
+        if agent.matings < 1 or (cfg.ce_fitness_requires_survival and agent.dead):
+            return 0.0
+        return agent.fitness(cfg.fitness_time_unit)
+
+    def _on_death(self, robot: int, slot: int) -> None:
+        self.finished[robot, slot] = True
+
+    def _on_full_life(self, robot: int, slot: int) -> None:
+        self.finished[robot, slot] = True
+
+    def _advance(self, robot: int) -> None:
+        k = self.subpopulation_size
+        start = int(self.active_slot[robot])
+        for offset in range(1, k + 1):
+            slot = (start + offset) % k
+            if not self.finished[robot, slot]:
+                self.active_slot[robot] = slot
+                self._load(robot)
+                return
+        self.active[robot] = False
+        self.switched[robot] = True
+        self.active_energy[robot] = 0.0
+        self._age[robot] = 0
+        self._slice[robot] = 0
+        self._batteries[robot] = 0
+        self._matings[robot] = 0
+
+    def _after_step(self) -> None:
+        if self.active.any():
+            return
+        cfg = self.config
+        agents = [agent for slots in self.slots for agent in slots]
+        fitness = np.array([self.ce_fitness(agent) for agent in agents])
+        genomes, crossed = next_generation(
+            [a.genome for a in agents], fitness, self._rng, cfg.genetics
+        )
+        previous = self.generation
+        for was_crossed in crossed:
+            self.stats.record_reproduction(previous, crossover=was_crossed)
+        self.stats.close(previous, 0)
+        self.generation += 1
+        self.slot_generation[:] = self.generation
+        self.finished[:] = False
+        k = self.subpopulation_size
+        for r in range(self.n_robots):
+            for s in range(k):
+                self._new_agent(r, s, genomes[r * k + s], Origin.SELECTED)
+            self.active[r] = True
+            self.active_slot[r] = 0
+            self._load(r)
