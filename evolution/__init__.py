@@ -3,11 +3,18 @@
 The world-independent core: the genome (:class:`Genome`), the 39-weight controller
 (:class:`NeuralController`), virtual agents (:class:`VirtualAgent`), the reproduction rules
 (:mod:`evolution.reproduction`), the time-sharing schedulers (:class:`EmbodiedEvolution`,
-:class:`CentralisedEvolution`) and the per-generation statistics (:mod:`evolution.stats`). Every
-number of the paper is a field of :class:`EvolutionConfig`.
+:class:`CentralisedEvolution`), the per-generation statistics (:mod:`evolution.stats`) and
+atomic checkpoints (:mod:`evolution.checkpoint`). Every number of the paper is a field of
+:class:`EvolutionConfig`.
 """
 
 from evolution.agent import MatingRecord, Origin, VirtualAgent, fitness
+from evolution.checkpoint import (
+    CheckpointError,
+    config_fingerprint,
+    load_checkpoint,
+    save_checkpoint,
+)
 from evolution.config import GENOME_LENGTH, EvolutionConfig, GeneticConfig, default_config
 from evolution.controller import FORAGE, MATE, SEARCH, NeuralController
 from evolution.genome import Genome
@@ -27,6 +34,7 @@ __all__ = [
     "NO_PARTNER",
     "SEARCH",
     "CentralisedEvolution",
+    "CheckpointError",
     "EmbodiedEvolution",
     "EvolutionConfig",
     "GenerationStats",
@@ -38,10 +46,13 @@ __all__ = [
     "StatisticsRecorder",
     "TimeSharingScheduler",
     "VirtualAgent",
+    "config_fingerprint",
     "default_config",
     "draw_replacement",
     "fitness",
+    "load_checkpoint",
     "make_offspring",
     "next_generation",
+    "save_checkpoint",
     "tournament",
 ]

@@ -127,6 +127,7 @@ class TimeSharingScheduler:
     # --- views ----------------------------------------------------------------------------
     @property
     def active_weights(self) -> np.ndarray:
+        """(n_robots, 39) live read-only view of the active genomes (fetch once, it updates)."""
         view = self._weights.view()
         view.flags.writeable = False
         return view
