@@ -1,0 +1,662 @@
+"""The survival world: virtual energy, docking and recharging, the LED, and IR mating.
+
+This is the paper's survival setting (Elfwing et al., section 3.2 and Table 1; DESIGN.md §5) as
+mechanics of the simulated world, on top of :class:`cyber_rodent.world.World`:
+
+* **Energy.** Each robot carries the virtual battery of its active agent: it starts at 100,
+  is capped at 200 and drains 1 per control step; a step spent recharging adds 5 instead. We
+  read "gains 5 per step" (DESIGN.md §5) as the net change of a recharge step, because the
+  paper's numbers fit that reading: 40 steps x 5 = 200, the maximum energy, exactly
+  (``decay_while_recharging=True`` gives the other reading, +5 - 1). Energy 0 is death, which
+  the world reports once; a dead robot stands still with its LED off until the caller loads
+  the next agent's energy (:meth:`SurvivalWorld.set_energy`).
+* **Docking.** A capture happens when MuJoCo reports a contact between a robot's charging
+  teeth and a pack's electrode ring *and* the pack lies ahead of the robot within
+  ``dock_bearing_tolerance_deg``. Brushing a pack with the side or back, or clipping it with a
+  corner of the teeth while passing beside it, is not a capture: those contacts happen with
+  the pack at 20° or more off the heading (measured, see ``tests/test_survival_physics.py``).
+  While recharging the robot is held in place by a weld of its chassis to the world, an
+  equality constraint of the world model (``world.dock_hold_name``); its wheels are stopped.
+  Packs are static and never used up.
+* **Recharging.** Every step the caller's recharge decision (the evolved recharge controller)
+  says continue or stop. Recharging ends on "stop", after ``max_recharge_steps`` (40)
+  consecutive steps, or at full energy. Then the weld is released and the robot performs a
+  short rotation reflex of random direction and length (seeded), which turns its teeth away
+  from the pack so that it does not simply dock again (the paper's "random rotating motion").
+* **LED.** Green on or dark, per robot, set by the caller every step; other robots see it
+  through vision.
+* **IR mating.** An exchange succeeds when both robots signal Mate and each one's IR port
+  faces the other's within ``mate_angle_deg`` (±15°) at a port-to-port distance of at most
+  ``mate_distance`` (0.35 m), for ``mate_consecutive_steps`` consecutive control steps. The
+  world reports the pair; what is exchanged is the caller's business.
+
+The class is the *lean path* that the evolution runner steps 1.2 million times per run: it
+computes no observations (no vision, no copies of sensor data), keeps its state in
+preallocated numpy arrays and reports events in a reused :class:`StepEvents`. The dm-control
+tasks (:mod:`cyber_rodent.tasks`) drive the same object through :meth:`SurvivalWorld.begin_step`
+and :meth:`SurvivalWorld.end_step`, with dm-control stepping the physics in between.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import IntEnum
+
+import mujoco
+import numpy as np
+
+from cyber_rodent import constants as C
+from cyber_rodent.world import World, WorldConfig, dock_hold_name
+
+# Weld equality data layout (MuJoCo 3.x ``eq_data`` row): anchor (3), relative pose of body2 in
+# body1's frame: position (3) then quaternion (4), torque scale (1).
+_WELD_RELPOS = slice(3, 6)
+_WELD_RELQUAT = slice(6, 10)
+
+#: Teeth-to-pack-centre distance (m) beyond which no teeth/electrode contact is possible
+#: (electrode radius 4.5 cm + teeth half-diagonal 3.3 cm + margin). Cheap pre-check that lets
+#: the lean path skip the contact scan on most steps.
+_DOCK_PRECHECK_RADIUS = 0.1
+
+
+class RechargeEnd(IntEnum):
+    """Why a recharge ended (``StepEvents.recharge_end_reason``)."""
+
+    NONE = 0
+    DECISION = 1  #: the recharge controller said stop
+    MAX_STEPS = 2  #: ``max_recharge_steps`` consecutive steps reached
+    FULL = 3  #: energy reached ``max_energy``
+
+
+@dataclass(frozen=True)
+class SurvivalConfig:
+    """Every rule of the survival world, with the paper's defaults (Table 1, DESIGN.md §5).
+
+    Attributes:
+        initial_energy: energy of a newborn agent (paper: 100).
+        max_energy: energy cap (paper: 200).
+        energy_decay: energy lost per control step when not recharging (paper: 1).
+        recharge_rate: energy gained per recharge step (paper: 5).
+        decay_while_recharging: also drain ``energy_decay`` on recharge steps (net +4 instead of
+            +5). Off by default: 40 steps x 5 = 200 = ``max_energy`` is the paper's arithmetic.
+        max_recharge_steps: consecutive recharge steps after which recharging ends (paper: 40).
+        control_dt: seconds of simulated time per control step (DESIGN.md §5: 0.1 s); must be a
+            whole number of physics timesteps.
+        reflex_min_steps: shortest post-recharge rotation reflex, control steps.
+        reflex_max_steps: longest reflex; the length is drawn uniformly in [min, max]. At the
+            default spin speed a step turns 0.375 rad, so 4..8 steps turn 86°..172°.
+        reflex_wheel_speed: wheel rim speed of the reflex spin, m/s.
+        dock_bearing_tolerance_deg: a teeth/electrode contact is a capture only if the pack's
+            centre lies within this angle of the robot's heading. 15° admits every head-on
+            approach whose teeth centre is within 5 cm of the pack's axis and rejects the
+            corner contacts of driving past a pack (which happen at 20° or more).
+        mate_angle_deg: each IR port must face the other port within this angle (paper: about
+            ±15°; DESIGN.md §5).
+        mate_distance: largest IR port-to-port distance for an exchange, m (DESIGN.md: 0.35).
+        mate_consecutive_steps: control steps the mating condition must hold (DESIGN.md: 1).
+    """
+
+    initial_energy: float = 100.0
+    max_energy: float = 200.0
+    energy_decay: float = 1.0
+    recharge_rate: float = 5.0
+    decay_while_recharging: bool = False
+    max_recharge_steps: int = 40
+    control_dt: float = 0.1
+    reflex_min_steps: int = 4
+    reflex_max_steps: int = 8
+    reflex_wheel_speed: float = 0.3
+    dock_bearing_tolerance_deg: float = 15.0
+    mate_angle_deg: float = 15.0
+    mate_distance: float = 0.35
+    mate_consecutive_steps: int = 1
+
+    def __post_init__(self) -> None:
+        def number(name: str, lo: float, hi: float, lo_open: bool = False) -> None:
+            v = getattr(self, name)
+            ok = isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            ok = ok and (v > lo if lo_open else v >= lo) and v <= hi
+            if not ok:
+                left = "(" if lo_open else "["
+                raise ValueError(f"{name} must be a number in {left}{lo}, {hi}], got {v!r}")
+
+        def integer(name: str, lo: int, hi: int) -> None:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
+                raise ValueError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
+
+        number("initial_energy", 0.0, 1e9, lo_open=True)
+        number("max_energy", 0.0, 1e9, lo_open=True)
+        if self.max_energy < self.initial_energy:
+            raise ValueError(
+                f"max_energy must be >= initial_energy ({self.initial_energy}), "
+                f"got {self.max_energy!r}"
+            )
+        number("energy_decay", 0.0, self.max_energy)
+        number("recharge_rate", 0.0, self.max_energy)
+        if not isinstance(self.decay_while_recharging, bool):
+            raise ValueError(
+                f"decay_while_recharging must be a bool, got {self.decay_while_recharging!r}"
+            )
+        integer("max_recharge_steps", 1, 1_000_000)
+        number("control_dt", 0.0, 10.0, lo_open=True)
+        integer("reflex_min_steps", 0, 1000)
+        integer("reflex_max_steps", self.reflex_min_steps, 1000)
+        number("reflex_wheel_speed", 0.0, C.TOP_SPEED, lo_open=True)
+        number("dock_bearing_tolerance_deg", 0.0, 90.0, lo_open=True)
+        number("mate_angle_deg", 0.0, 90.0, lo_open=True)
+        number("mate_distance", 0.0, C.FIELD_SIZE * math.sqrt(2), lo_open=True)
+        integer("mate_consecutive_steps", 1, 1_000_000)
+
+
+class StepEvents:
+    """What happened in one control step, per robot, in preallocated arrays.
+
+    The lean path reuses one instance for every step (no per-step allocation): its arrays are
+    overwritten by the next step, so call :meth:`copy` to keep them. ``any`` is False on the
+    vast majority of steps, which lets a hot loop skip event handling with one test.
+
+    Attributes:
+        docked: (n,) bool, the robot captured a pack this step (it recharges from the next).
+        dock_pack: (n,) int, index of the captured pack, -1 where ``docked`` is False.
+        recharge_ended: (n,) bool, the robot's recharge ended this step.
+        recharge_end_reason: (n,) int, a :class:`RechargeEnd` value (``NONE`` elsewhere).
+        died: (n,) bool, the robot's energy reached 0 this step.
+        mate_partner: (n,) int, the robot it exchanged genomes with this step, else -1.
+        any: True if any of the above happened.
+    """
+
+    __slots__ = (
+        "docked",
+        "dock_pack",
+        "recharge_ended",
+        "recharge_end_reason",
+        "died",
+        "mate_partner",
+        "any",
+    )
+
+    def __init__(self, n_robots: int):
+        self.docked = np.zeros(n_robots, dtype=bool)
+        self.dock_pack = np.full(n_robots, -1, dtype=np.int64)
+        self.recharge_ended = np.zeros(n_robots, dtype=bool)
+        self.recharge_end_reason = np.zeros(n_robots, dtype=np.int64)
+        self.died = np.zeros(n_robots, dtype=bool)
+        self.mate_partner = np.full(n_robots, -1, dtype=np.int64)
+        self.any = False
+
+    def clear(self) -> None:
+        if self.any:
+            self.docked[:] = False
+            self.dock_pack[:] = -1
+            self.recharge_ended[:] = False
+            self.recharge_end_reason[:] = RechargeEnd.NONE
+            self.died[:] = False
+            self.mate_partner[:] = -1
+            self.any = False
+
+    def copy(self) -> StepEvents:
+        other = StepEvents(len(self.docked))
+        for name in self.__slots__[:-1]:
+            np.copyto(getattr(other, name), getattr(self, name))
+        other.any = self.any
+        return other
+
+    def dockings(self) -> list[tuple[int, int]]:
+        """(robot, pack) for each capture this step."""
+        return [(int(i), int(self.dock_pack[i])) for i in np.flatnonzero(self.docked)]
+
+    def recharge_ends(self) -> list[tuple[int, RechargeEnd]]:
+        """(robot, reason) for each recharge that ended this step."""
+        return [
+            (int(i), RechargeEnd(int(self.recharge_end_reason[i])))
+            for i in np.flatnonzero(self.recharge_ended)
+        ]
+
+    def deaths(self) -> list[int]:
+        """Robots whose energy reached 0 this step."""
+        return [int(i) for i in np.flatnonzero(self.died)]
+
+    def matings(self) -> list[tuple[int, int]]:
+        """(robot_a, robot_b), a < b, for each IR exchange this step."""
+        return [
+            (int(i), int(self.mate_partner[i]))
+            for i in np.flatnonzero(self.mate_partner >= 0)
+            if i < self.mate_partner[i]
+        ]
+
+    def __repr__(self) -> str:
+        return (
+            f"StepEvents(dockings={self.dockings()}, recharge_ends={self.recharge_ends()}, "
+            f"deaths={self.deaths()}, matings={self.matings()})"
+        )
+
+
+def _substeps(control_dt: float, timestep: float) -> int:
+    n = round(control_dt / timestep)
+    if n < 1 or abs(n * timestep - control_dt) > 1e-9 * max(1.0, control_dt):
+        raise ValueError(
+            f"control_dt must be a positive whole multiple of the physics timestep "
+            f"({timestep} s), got {control_dt!r}"
+        )
+    return int(n)
+
+
+class SurvivalWorld:
+    """A :class:`World` with the survival mechanics; the lean stepping path.
+
+    Per-robot state lives in public numpy arrays (read them freely; write energy and recharge
+    counters through :meth:`set_energy` and :meth:`set_recharge_steps`, which validate), so a
+    time-sharing scheduler can swap the active agent's energy in and out of a robot.
+
+    Args:
+        world: the physical world, or a :class:`WorldConfig` to build one (default: 4 robots,
+            5 packs).
+        config: the survival rules.
+        rng: generator for the placement and the reflexes; :meth:`reset` takes a new one.
+
+    Attributes:
+        energy: (n,) float, virtual energy of each robot's active agent.
+        recharge_steps: (n,) int, consecutive steps recharged in the current docking (0 when
+            not docked).
+        docked: (n,) bool, the robot is docked and recharging (held by its weld).
+        dock_pack: (n,) int, the pack it is docked to, else -1.
+        reflex_steps_left: (n,) int, steps of the post-recharge rotation reflex still to run.
+        alive: (n,) bool, energy above 0.
+        rng: the generator of the reflexes (and of the placement at :meth:`reset`).
+        step_count: control steps since the last reset.
+        events: the :class:`StepEvents` of the last step (reused, see there).
+    """
+
+    def __init__(
+        self,
+        world: World | WorldConfig | None = None,
+        config: SurvivalConfig | None = None,
+        rng: np.random.Generator | None = None,
+    ):
+        if world is None or isinstance(world, WorldConfig):
+            world = World(world)
+        self.world = world
+        self.config = config if config is not None else SurvivalConfig()
+        self.n_robots = world.config.n_robots
+        self.n_packs = world.config.n_packs
+        m = world.model
+        self.n_substeps = _substeps(self.config.control_dt, float(m.opt.timestep))
+        self._index()
+        n = self.n_robots
+        self.energy = np.zeros(n)
+        self.recharge_steps = np.zeros(n, dtype=np.int64)
+        self.docked = np.zeros(n, dtype=bool)
+        self.dock_pack = np.full(n, -1, dtype=np.int64)
+        self.reflex_steps_left = np.zeros(n, dtype=np.int64)
+        self.alive = np.ones(n, dtype=bool)
+        self.step_count = 0
+        self.events = StepEvents(n)
+        # Scratch state of the step in progress (begin_step -> end_step).
+        self._reflex_wheels = np.zeros((n, 2))
+        self._wheels = np.zeros((n, 2))
+        self._recharging = np.zeros(n, dtype=bool)
+        self._in_reflex = np.zeros(n, dtype=bool)
+        self._mate_signal = np.zeros(n, dtype=bool)
+        self._led = np.zeros(n, dtype=bool)
+        self._mate_streak = np.zeros((n, n), dtype=np.int64)
+        self._mid_step = False
+        self._cos_dock = math.cos(math.radians(self.config.dock_bearing_tolerance_deg))
+        self._cos_mate = math.cos(math.radians(self.config.mate_angle_deg))
+        self.reset(rng if rng is not None else np.random.default_rng(0))
+
+    # --- set-up (off the hot path) -----------------------------------------------------------
+    def _index(self) -> None:
+        w, m = self.world, self.world.model
+        hold = [
+            mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, dock_hold_name(i))
+            for i in range(self.n_robots)
+        ]
+        if min(hold) < 0:
+            raise RuntimeError("the world model has no docking-hold welds (world.build_mjcf)")
+        self._hold_eq = np.asarray(hold, dtype=np.int64)
+        for i, e in enumerate(self._hold_eq):
+            if m.eq_type[e] != mujoco.mjtEq.mjEQ_WELD or m.eq_obj1id[e] != w.chassis_body[i]:
+                raise RuntimeError(f"{dock_hold_name(i)} is not a weld of robot {i}'s chassis")
+        self._teeth_owner = np.full(m.ngeom, -1, dtype=np.int64)
+        self._teeth_owner[w.teeth_geom] = np.arange(self.n_robots)
+        self._electrode_owner = np.full(m.ngeom, -1, dtype=np.int64)
+        self._electrode_owner[w.electrode_geom] = np.arange(self.n_packs)
+        self._floor_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, C.FLOOR_GEOM)
+        self._pack_xy = np.zeros((self.n_packs, 2))
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """New random placement (``World.reset``) and newborn energy for every robot.
+
+        ``rng`` is kept for the reflexes, so a run is a pure function of its generator.
+        """
+        self.rng = rng
+        self.world.reset(rng)  # mj_resetData also switches every docking weld off
+        self._pack_xy[:] = self.world.pack_positions()
+        self.energy[:] = self.config.initial_energy
+        self.recharge_steps[:] = 0
+        self.docked[:] = False
+        self.dock_pack[:] = -1
+        self.reflex_steps_left[:] = 0
+        self.alive[:] = True
+        self._mate_streak[:] = 0
+        self.step_count = 0
+        self.events.any = True
+        self.events.clear()
+        self._mid_step = False
+
+    def refresh_pack_positions(self) -> None:
+        """Re-read pack positions after moving packs with ``World.set_pack_position``."""
+        self._pack_xy[:] = self.world.pack_positions()
+
+    # --- agent state (time sharing) ----------------------------------------------------------
+    def set_energy(self, robot: int, energy: float) -> None:
+        """Load an agent's energy into ``robot``; energy > 0 also revives a dead robot.
+
+        Raises:
+            ValueError: if ``energy`` is not in [0, max_energy].
+        """
+        e = float(energy)
+        if not 0.0 <= e <= self.config.max_energy:
+            raise ValueError(f"energy must be in [0, {self.config.max_energy}], got {energy!r}")
+        self.energy[robot] = e
+        self.alive[robot] = e > 0.0
+
+    def set_recharge_steps(self, robot: int, steps: int) -> None:
+        """Set the consecutive-recharge counter of a docked robot (agent switch while docked).
+
+        Raises:
+            ValueError: if ``steps`` is not in [0, max_recharge_steps).
+        """
+        if not 0 <= int(steps) < self.config.max_recharge_steps:
+            raise ValueError(
+                f"recharge steps must be in [0, {self.config.max_recharge_steps}), got {steps!r}"
+            )
+        self.recharge_steps[robot] = int(steps)
+
+    def end_recharge(self, robot: int, reflex: bool = True) -> None:
+        """Undock ``robot`` at the caller's request (no event), optionally with the reflex."""
+        if self.docked[robot]:
+            self._release(robot, reflex)
+
+    # --- stepping ----------------------------------------------------------------------------
+    def step(
+        self,
+        wheels: np.ndarray,
+        led: np.ndarray,
+        mate: np.ndarray,
+        recharge_continue: np.ndarray,
+    ) -> StepEvents:
+        """One control step: commands, ``n_substeps`` physics steps, then the mechanics.
+
+        Args:
+            wheels: (n, 2) left/right wheel rim speeds in m/s, within ±``TOP_SPEED``. Ignored
+                for robots that are docked, in their reflex, or dead.
+            led: (n,) bool, green LED on.
+            mate: (n,) bool, the robot's active agent runs Mate (signals willingness to mate).
+            recharge_continue: (n,) bool, the recharge decision of docked robots (True =
+                keep recharging); ignored for the others.
+
+        Returns:
+            The step's events (a reused object, see :class:`StepEvents`).
+
+        Raises:
+            ValueError: on NaN, infinite or out-of-range wheel speeds or wrong shapes.
+        """
+        self.begin_step(wheels, led, mate, recharge_continue)
+        mujoco.mj_step(self.world.model, self.world.data, nstep=self.n_substeps)
+        return self.end_step()
+
+    def begin_step(
+        self,
+        wheels: np.ndarray,
+        led: np.ndarray,
+        mate: np.ndarray,
+        recharge_continue: np.ndarray,
+    ) -> None:
+        """First half of :meth:`step`: apply decisions and commands (physics not stepped)."""
+        n = self.n_robots
+        wheels = np.asarray(wheels, dtype=float)
+        if wheels.shape != (n, 2):
+            raise ValueError(f"wheels must have shape ({n}, 2), got {wheels.shape}")
+        if not np.isfinite(wheels).all():
+            raise ValueError("wheels must be finite wheel speeds in m/s (got NaN or inf)")
+        if np.abs(wheels).max() > C.TOP_SPEED + 1e-9:
+            raise ValueError(
+                f"wheels must be in [-{C.TOP_SPEED}, {C.TOP_SPEED}] m/s (the motor limit), "
+                f"got {np.abs(wheels).max():.4g}"
+            )
+        led = self._flags("led", led)
+        mate = self._flags("mate", mate)
+        recharge_continue = self._flags("recharge_continue", recharge_continue)
+
+        self.events.clear()
+        # Recharge decisions of docked robots: "stop" ends the recharge now, before this step.
+        if self.docked.any():
+            for i in np.flatnonzero(self.docked & ~recharge_continue):
+                self._release(int(i), reflex=True)
+                self._record_end(int(i), RechargeEnd.DECISION)
+        np.copyto(self._recharging, self.docked)
+        np.greater(self.reflex_steps_left, 0, out=self._in_reflex)
+
+        # Motor commands: docked and dead robots stand still, reflexes override the caller.
+        np.copyto(self._wheels, wheels)
+        self._wheels[self._recharging | ~self.alive] = 0.0
+        if self._in_reflex.any():
+            self._wheels[self._in_reflex] = self._reflex_wheels[self._in_reflex]
+        self.world.set_wheel_speeds(self._wheels[:, 0], self._wheels[:, 1])
+
+        np.logical_and(led, self.alive, out=self._led)
+        if not np.array_equal(self._led, self.world.led_on):
+            self.world.set_led(self._led)
+        # Only free, living robots take part in a mating handshake.
+        np.logical_and(mate, self.alive, out=self._mate_signal)
+        self._mate_signal &= ~self._recharging
+        self._mate_signal &= ~self._in_reflex
+        self._mid_step = True
+
+    def end_step(self) -> StepEvents:
+        """Second half of :meth:`step`, after the physics has advanced: energy and events."""
+        if not self._mid_step:
+            raise RuntimeError("end_step() called without begin_step()")
+        self._mid_step = False
+        cfg = self.config
+        ev = self.events
+        self.reflex_steps_left[self._in_reflex] -= 1
+
+        # Energy of recharging robots, then the recharge stopping rules.
+        rech = self._recharging
+        if rech.any():
+            gain = cfg.recharge_rate - (cfg.energy_decay if cfg.decay_while_recharging else 0.0)
+            self.energy[rech] = np.minimum(self.energy[rech] + gain, cfg.max_energy)
+            self.recharge_steps[rech] += 1
+            for i in np.flatnonzero(rech):
+                i = int(i)
+                if self.recharge_steps[i] >= cfg.max_recharge_steps:
+                    reason = RechargeEnd.MAX_STEPS
+                elif self.energy[i] >= cfg.max_energy:
+                    reason = RechargeEnd.FULL
+                else:
+                    continue
+                self._release(i, reflex=True)
+                self._record_end(i, reason)
+
+        # Everyone else pays the step; energy 0 is death.
+        free = self.alive & ~rech
+        self.energy[free] -= cfg.energy_decay
+        died = free & (self.energy <= 0.0)
+        if died.any():
+            self.energy[died] = 0.0
+            self.alive[died] = False
+            ev.died |= died
+            ev.any = True
+
+        if self.n_packs:
+            self._detect_docking()
+        if self._mate_signal.sum() >= 2:
+            self._detect_mating()
+        elif self._mate_streak.any():
+            self._mate_streak[:] = 0
+        self.step_count += 1
+        return ev
+
+    def _flags(self, name: str, value: np.ndarray) -> np.ndarray:
+        arr = np.asarray(value)
+        if arr.shape != (self.n_robots,):
+            raise ValueError(f"{name} must have shape ({self.n_robots},), got {arr.shape}")
+        if arr.dtype != bool:
+            if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+                raise ValueError(f"{name} must be booleans (got NaN or inf)")
+            arr = arr.astype(bool)
+        return arr
+
+    # --- docking -----------------------------------------------------------------------------
+    def _detect_docking(self) -> None:
+        w, d = self.world, self.world.data
+        free = self.alive & ~self.docked & ~self._in_reflex
+        free &= self.reflex_steps_left == 0
+        if not free.any() or d.ncon == 0:
+            return
+        # Cheap geometric pre-check: is any free robot's teeth near any pack?
+        teeth_xy = d.geom_xpos[w.teeth_geom, :2]
+        delta = teeth_xy[:, None, :] - self._pack_xy[None, :, :]
+        near = np.einsum("ijk,ijk->ij", delta, delta).min(axis=1) < _DOCK_PRECHECK_RADIUS**2
+        near &= free
+        if not near.any():
+            return
+        geom = d.contact.geom
+        robot = self._teeth_owner[geom]
+        pack = self._electrode_owner[geom]
+        hit_a = (robot[:, 0] >= 0) & (pack[:, 1] >= 0)
+        hit_b = (robot[:, 1] >= 0) & (pack[:, 0] >= 0)
+        if not (hit_a.any() or hit_b.any()):
+            return
+        robots = np.concatenate([robot[hit_a, 0], robot[hit_b, 1]])
+        packs = np.concatenate([pack[hit_a, 1], pack[hit_b, 0]])
+        for i, j in zip(robots.tolist(), packs.tolist(), strict=True):
+            if near[i] and not self.docked[i] and self._pack_ahead(i, j):
+                self._dock(i, j)
+
+    def _pack_ahead(self, i: int, j: int) -> bool:
+        """Is pack ``j`` within the docking tolerance of robot ``i``'s heading?"""
+        d = self.world.data
+        b = self.world.chassis_body[i]
+        xmat = d.xmat[b]
+        rel_x = self._pack_xy[j, 0] - d.xpos[b, 0]
+        rel_y = self._pack_xy[j, 1] - d.xpos[b, 1]
+        forward = rel_x * xmat[0] + rel_y * xmat[3]
+        dist = math.hypot(rel_x, rel_y)
+        return dist > 0.0 and forward >= self._cos_dock * dist
+
+    def _dock(self, i: int, j: int) -> None:
+        m, d = self.world.model, self.world.data
+        b = self.world.chassis_body[i]
+        e = self._hold_eq[i]
+        # Weld at the current pose: relpose = the world frame seen from the chassis frame.
+        quat = d.xquat[b]
+        conj = np.array([quat[0], -quat[1], -quat[2], -quat[3]])
+        relpos = np.empty(3)
+        mujoco.mju_rotVecQuat(relpos, -d.xpos[b], conj)
+        m.eq_data[e, _WELD_RELPOS] = relpos
+        m.eq_data[e, _WELD_RELQUAT] = conj
+        d.eq_active[e] = 1
+        self.docked[i] = True
+        self.dock_pack[i] = j
+        self.recharge_steps[i] = 0
+        self.events.docked[i] = True
+        self.events.dock_pack[i] = j
+        self.events.any = True
+
+    def _release(self, i: int, reflex: bool) -> None:
+        self.world.data.eq_active[self._hold_eq[i]] = 0
+        self.docked[i] = False
+        self.dock_pack[i] = -1
+        self.recharge_steps[i] = 0
+        if reflex and self.config.reflex_max_steps > 0:
+            cfg = self.config
+            self.reflex_steps_left[i] = self.rng.integers(
+                cfg.reflex_min_steps, cfg.reflex_max_steps + 1
+            )
+            direction = 1.0 if self.rng.random() < 0.5 else -1.0  # +1 = counter-clockwise
+            self._reflex_wheels[i] = (
+                -direction * cfg.reflex_wheel_speed,
+                direction * cfg.reflex_wheel_speed,
+            )
+
+    def _record_end(self, i: int, reason: RechargeEnd) -> None:
+        self.events.recharge_ended[i] = True
+        self.events.recharge_end_reason[i] = reason
+        self.events.any = True
+
+    # --- mating ------------------------------------------------------------------------------
+    def ir_geometry(self) -> tuple[np.ndarray, np.ndarray]:
+        """Pairwise IR-port geometry: (distance m, angle deg), both (n, n).
+
+        ``angle[i, j]`` is the angle between robot ``i``'s IR port direction and the line from
+        its port to robot ``j``'s port; the diagonal is undefined (distance 0, angle 0).
+        """
+        dist, cos = self._ir_pairs()
+        with np.errstate(invalid="ignore"):
+            angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+        np.fill_diagonal(angle, 0.0)
+        return dist, angle
+
+    def _ir_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        d = self.world.data
+        sites = self.world.ir_port_site
+        pos = d.site_xpos[sites]
+        axis = d.site_xmat[sites][:, 2::3]  # the site's z axis: where the port points
+        diff = pos[None, :, :] - pos[:, None, :]  # diff[i, j] = p_j - p_i
+        dist = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
+        proj = np.einsum("ik,ijk->ij", axis, diff)
+        np.fill_diagonal(dist, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cos = np.where(dist > 0.0, proj / np.where(dist > 0.0, dist, 1.0), 1.0)
+        return dist, cos
+
+    def _detect_mating(self) -> None:
+        cfg = self.config
+        sig = self._mate_signal & self.alive & ~self.docked
+        dist, cos = self._ir_pairs()
+        ok = sig[:, None] & sig[None, :]
+        ok &= dist <= cfg.mate_distance
+        ok &= cos >= self._cos_mate
+        ok &= ok.T  # both ports must face each other
+        np.fill_diagonal(ok, False)
+        self._mate_streak += 1
+        self._mate_streak[~ok] = 0
+        ready = np.triu(self._mate_streak >= cfg.mate_consecutive_steps, k=1)
+        if not ready.any():
+            return
+        # A robot exchanges with one partner per step: nearest pairs first (deterministic).
+        pairs = np.argwhere(ready)
+        order = np.lexsort((pairs[:, 1], pairs[:, 0], dist[pairs[:, 0], pairs[:, 1]]))
+        ev = self.events
+        for a, b in pairs[order].tolist():
+            if ev.mate_partner[a] < 0 and ev.mate_partner[b] < 0:
+                ev.mate_partner[a] = b
+                ev.mate_partner[b] = a
+                self._mate_streak[a, b] = self._mate_streak[b, a] = 0
+                ev.any = True
+
+    # --- contacts ------------------------------------------------------------------------------
+    def collisions(self, out: np.ndarray | None = None) -> np.ndarray:
+        """(n,) bool: the robot's body touches a wall, a pack or another robot right now.
+
+        Floor contacts (wheels, casters) do not count; a docked robot's teeth on its pack do.
+        """
+        if out is None:
+            out = np.zeros(self.n_robots, dtype=bool)
+        else:
+            out[:] = False
+        d = self.world.data
+        if d.ncon == 0:
+            return out
+        geom = d.contact.geom
+        owner = self.world.geom_robot[geom]
+        floor = geom == self._floor_geom
+        for side, other in ((0, 1), (1, 0)):
+            mask = (owner[:, side] >= 0) & ~floor[:, other] & (owner[:, other] != owner[:, side])
+            out[owner[mask, side]] = True
+        return out
