@@ -1,0 +1,87 @@
+"""The dm_env environment of the Cyber Rodent tasks, and loading tasks by name."""
+
+from __future__ import annotations
+
+import numpy as np
+from dm_control.rl import control
+from dm_env import specs
+
+from cyber_rodent.tasks.base import CyberRodentTask
+from cyber_rodent.tasks.forage import Forage
+from cyber_rodent.tasks.mate import Mate
+from cyber_rodent.tasks.search import Search
+from cyber_rodent.tasks.survival import Survival
+
+#: Task classes by name.
+TASKS: dict[str, type[CyberRodentTask]] = {
+    "survival": Survival,
+    "forage": Forage,
+    "mate": Mate,
+    "search": Search,
+}
+TASK_NAMES = tuple(TASKS)
+
+
+class CyberRodentEnvironment(control.Environment):
+    """``dm_control.rl.control.Environment`` with the Cyber Rodent conventions.
+
+    * One control step is ``SurvivalConfig.control_dt`` (0.1 s) of physics substeps, stepped
+      with plain ``mj_step`` (``legacy_step=False``), exactly as the lean path steps them.
+    * Episodes last ``task.episode_steps`` control steps, counted as an integer (a time limit
+      in seconds would be divided by a float timestep and could be off by one step).
+    * The reward is an array, one entry per controlled robot (:meth:`reward_spec`).
+    """
+
+    def __init__(self, task: CyberRodentTask):
+        super().__init__(
+            task.physics,
+            task,
+            n_sub_steps=task.survival.n_substeps,
+            legacy_step=False,
+        )
+        self._step_limit = task.episode_steps
+
+    def reward_spec(self) -> specs.Array:
+        return self._task.reward_spec()
+
+    @property
+    def survival(self):
+        """The :class:`~cyber_rodent.survival.SurvivalWorld` under the task."""
+        return self._task.survival
+
+
+def load(
+    name: str, seed: int | np.random.Generator | None = None, **options
+) -> CyberRodentEnvironment:
+    """Create the task ``name`` as a ``dm_env`` environment.
+
+    Args:
+        name: ``"survival"``, ``"forage"``, ``"mate"`` or ``"search"`` (case-insensitive).
+        seed: an integer seed or a ``np.random.Generator``; the same seed gives the same
+            initial states and, for the same actions, the same trajectories. ``None`` draws
+            fresh entropy from the OS.
+        **options: task options, e.g. ``vision="rendered"``, ``n_robots=...``,
+            ``episode_steps=...``, ``survival=SurvivalConfig(...)``; see the task classes.
+
+    Raises:
+        ValueError: for an unknown task name or option (the message lists the allowed ones)
+            or an invalid option value.
+    """
+    if not isinstance(name, str) or name.lower() not in TASKS:
+        raise ValueError(f"unknown task {name!r}; allowed names: {', '.join(TASK_NAMES)}")
+    cls = TASKS[name.lower()]
+    allowed = cls.option_names()
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise ValueError(
+            f"unknown option(s) {unknown} for task {name!r}; allowed options: {', '.join(allowed)}"
+        )
+    if isinstance(seed, np.random.Generator):
+        rng = seed
+    elif seed is None or (isinstance(seed, int | np.integer) and not isinstance(seed, bool)):
+        if seed is not None and seed < 0:
+            raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+        rng = np.random.default_rng(seed)
+    else:
+        raise ValueError(f"seed must be an integer, a numpy Generator or None, got {seed!r}")
+    return CyberRodentEnvironment(cls(rng, **options))
