@@ -47,17 +47,12 @@ import mujoco
 import numpy as np
 
 from cyber_rodent import constants as C
-from cyber_rodent.world import World, WorldConfig, dock_hold_name
+from cyber_rodent.world import LED_OFF_RGBA, LED_ON_RGBA, World, WorldConfig, dock_hold_name
 
 # Weld equality data layout (MuJoCo 3.x ``eq_data`` row): anchor (3), relative pose of body2 in
 # body1's frame: position (3) then quaternion (4), torque scale (1).
 _WELD_RELPOS = slice(3, 6)
 _WELD_RELQUAT = slice(6, 10)
-
-#: Teeth-to-pack-centre distance (m) beyond which no teeth/electrode contact is possible
-#: (electrode radius 4.5 cm + teeth half-diagonal 3.3 cm + margin). Cheap pre-check that lets
-#: the lean path skip the contact scan on most steps.
-_DOCK_PRECHECK_RADIUS = 0.1
 
 
 class RechargeEnd(IntEnum):
@@ -301,6 +296,11 @@ class SurvivalWorld:
         self._mate_signal = np.zeros(n, dtype=bool)
         self._led = np.zeros(n, dtype=bool)
         self._mate_streak = np.zeros((n, n), dtype=np.int64)
+        self._streak_active = False
+        self._scratch = np.zeros(n, dtype=bool)
+        self._n_recharging = self._n_reflex = 0
+        self._wheel_shape = (n, 2)
+        self._flag_shape = (n,)
         self._mid_step = False
         self._cos_dock = math.cos(math.radians(self.config.dock_bearing_tolerance_deg))
         self._cos_mate = math.cos(math.radians(self.config.mate_angle_deg))
@@ -323,7 +323,25 @@ class SurvivalWorld:
         self._teeth_owner[w.teeth_geom] = np.arange(self.n_robots)
         self._electrode_owner = np.full(m.ngeom, -1, dtype=np.int64)
         self._electrode_owner[w.electrode_geom] = np.arange(self.n_packs)
+        self._teeth_owner_list = self._teeth_owner.tolist()
+        self._electrode_owner_list = self._electrode_owner.tolist()
+        self._dock_code = np.zeros(m.ngeom, dtype=np.int8)  # teeth 1, electrode 2
+        self._dock_code[w.teeth_geom] = 1
+        self._dock_code[w.electrode_geom] = 2
         self._floor_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, C.FLOOR_GEOM)
+        # The wheel motors' ctrl as an (n, 2) view (one slice: left/right per robot).
+        motors = [
+            mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, C.robot_prefix(i) + name)
+            for i in range(self.n_robots)
+            for name in (C.LEFT_MOTOR, C.RIGHT_MOTOR)
+        ]
+        if motors != list(range(motors[0], motors[0] + len(motors))):
+            raise RuntimeError("wheel motors are not contiguous in the compiled model")
+        self._ctrl = w.data.ctrl[motors[0] : motors[0] + len(motors)].reshape(self.n_robots, 2)
+        self._inv_wheel_radius = 1.0 / w.wheel_radius
+        self._geom_rgba = m.geom_rgba
+        self._led_geom = w.led_geom.tolist()
+        self._ir_sites = w.ir_port_site
         self._pack_xy = np.zeros((self.n_packs, 2))
 
     def reset(self, rng: np.random.Generator) -> None:
@@ -341,6 +359,7 @@ class SurvivalWorld:
         self.reflex_steps_left[:] = 0
         self.alive[:] = True
         self._mate_streak[:] = 0
+        self._streak_active = False
         self.step_count = 0
         self.events.any = True
         self.events.clear()
@@ -416,44 +435,59 @@ class SurvivalWorld:
         recharge_continue: np.ndarray,
     ) -> None:
         """First half of :meth:`step`: apply decisions and commands (physics not stepped)."""
-        n = self.n_robots
-        wheels = np.asarray(wheels, dtype=float)
-        if wheels.shape != (n, 2):
-            raise ValueError(f"wheels must have shape ({n}, 2), got {wheels.shape}")
-        if not np.isfinite(wheels).all():
-            raise ValueError("wheels must be finite wheel speeds in m/s (got NaN or inf)")
-        if np.abs(wheels).max() > C.TOP_SPEED + 1e-9:
+        # Hot path: a handful of numpy calls on (n,) arrays. Rare states (docked, reflex,
+        # dead) are counted with count_nonzero (cheap) and handled only when present.
+        if type(wheels) is not np.ndarray or wheels.dtype != np.float64:
+            wheels = np.asarray(wheels, dtype=np.float64)
+        if wheels.shape != self._wheel_shape:
+            raise ValueError(f"wheels must have shape {self._wheel_shape}, got {wheels.shape}")
+        if not (-C.TOP_SPEED <= wheels.min() and wheels.max() <= C.TOP_SPEED):  # NaN fails too
+            if not np.isfinite(wheels).all():
+                raise ValueError("wheels must be finite wheel speeds in m/s (got NaN or inf)")
             raise ValueError(
                 f"wheels must be in [-{C.TOP_SPEED}, {C.TOP_SPEED}] m/s (the motor limit), "
-                f"got {np.abs(wheels).max():.4g}"
+                f"got values from {wheels.min():.4g} to {wheels.max():.4g}"
             )
         led = self._flags("led", led)
         mate = self._flags("mate", mate)
         recharge_continue = self._flags("recharge_continue", recharge_continue)
 
+        count = np.count_nonzero
         self.events.clear()
         # Recharge decisions of docked robots: "stop" ends the recharge now, before this step.
-        if self.docked.any():
-            for i in np.flatnonzero(self.docked & ~recharge_continue):
-                self._release(int(i), reflex=True)
-                self._record_end(int(i), RechargeEnd.DECISION)
+        if count(self.docked):
+            for i in np.flatnonzero(self.docked & ~recharge_continue).tolist():
+                self._release(i, reflex=True)
+                self._record_end(i, RechargeEnd.DECISION)
         np.copyto(self._recharging, self.docked)
         np.greater(self.reflex_steps_left, 0, out=self._in_reflex)
+        self._n_recharging = count(self._recharging)
+        self._n_reflex = count(self._in_reflex)
+        n_dead = self.n_robots - count(self.alive)
 
         # Motor commands: docked and dead robots stand still, reflexes override the caller.
-        np.copyto(self._wheels, wheels)
-        self._wheels[self._recharging | ~self.alive] = 0.0
-        if self._in_reflex.any():
+        if self._n_recharging or self._n_reflex or n_dead:
+            np.copyto(self._wheels, wheels)
+            self._wheels[self._recharging] = 0.0
+            self._wheels[~self.alive] = 0.0
             self._wheels[self._in_reflex] = self._reflex_wheels[self._in_reflex]
-        self.world.set_wheel_speeds(self._wheels[:, 0], self._wheels[:, 1])
+            wheels = self._wheels
+        np.multiply(wheels, self._inv_wheel_radius, out=self._ctrl)
 
-        np.logical_and(led, self.alive, out=self._led)
-        if not np.array_equal(self._led, self.world.led_on):
-            self.world.set_led(self._led)
+        if n_dead:
+            np.logical_and(led, self.alive, out=self._led)
+            led = self._led
+        if count(np.not_equal(led, self.world.led_on, out=self._scratch)):
+            # What World.set_led does, for the changed LEDs only (a quarter of its cost).
+            for i in np.flatnonzero(self._scratch).tolist():
+                on = bool(led[i])
+                self.world.led_on[i] = on
+                self._geom_rgba[self._led_geom[i]] = LED_ON_RGBA if on else LED_OFF_RGBA
         # Only free, living robots take part in a mating handshake.
         np.logical_and(mate, self.alive, out=self._mate_signal)
-        self._mate_signal &= ~self._recharging
-        self._mate_signal &= ~self._in_reflex
+        if self._n_recharging or self._n_reflex:
+            self._mate_signal &= ~self._recharging
+            self._mate_signal &= ~self._in_reflex
         self._mid_step = True
 
     def end_step(self) -> StepEvents:
@@ -463,16 +497,17 @@ class SurvivalWorld:
         self._mid_step = False
         cfg = self.config
         ev = self.events
-        self.reflex_steps_left[self._in_reflex] -= 1
+        count = np.count_nonzero
+        if self._n_reflex:
+            np.subtract(self.reflex_steps_left, self._in_reflex, out=self.reflex_steps_left)
 
         # Energy of recharging robots, then the recharge stopping rules.
         rech = self._recharging
-        if rech.any():
+        if self._n_recharging:
             gain = cfg.recharge_rate - (cfg.energy_decay if cfg.decay_while_recharging else 0.0)
             self.energy[rech] = np.minimum(self.energy[rech] + gain, cfg.max_energy)
             self.recharge_steps[rech] += 1
-            for i in np.flatnonzero(rech):
-                i = int(i)
+            for i in np.flatnonzero(rech).tolist():
                 if self.recharge_steps[i] >= cfg.max_recharge_steps:
                     reason = RechargeEnd.MAX_STEPS
                 elif self.energy[i] >= cfg.max_energy:
@@ -483,28 +518,35 @@ class SurvivalWorld:
                 self._record_end(i, reason)
 
         # Everyone else pays the step; energy 0 is death.
-        free = self.alive & ~rech
-        self.energy[free] -= cfg.energy_decay
-        died = free & (self.energy <= 0.0)
-        if died.any():
+        if self._n_recharging or count(self.alive) < self.n_robots:
+            free = self.alive & ~rech
+            self.energy[free] -= cfg.energy_decay
+            died = free & (self.energy <= 0.0)
+        else:
+            self.energy -= cfg.energy_decay
+            died = self.energy <= 0.0
+        if count(died):
             self.energy[died] = 0.0
             self.alive[died] = False
             ev.died |= died
             ev.any = True
 
-        if self.n_packs:
+        if self.n_packs and self.world.data.ncon:
             self._detect_docking()
-        if self._mate_signal.sum() >= 2:
+        if count(self._mate_signal) >= 2:
             self._detect_mating()
-        elif self._mate_streak.any():
+        elif self._streak_active:
             self._mate_streak[:] = 0
+            self._streak_active = False
         self.step_count += 1
         return ev
 
     def _flags(self, name: str, value: np.ndarray) -> np.ndarray:
+        if type(value) is np.ndarray and value.dtype == bool and value.shape == self._flag_shape:
+            return value
         arr = np.asarray(value)
-        if arr.shape != (self.n_robots,):
-            raise ValueError(f"{name} must have shape ({self.n_robots},), got {arr.shape}")
+        if arr.shape != self._flag_shape:
+            raise ValueError(f"{name} must have shape {self._flag_shape}, got {arr.shape}")
         if arr.dtype != bool:
             if arr.dtype.kind == "f" and not np.isfinite(arr).all():
                 raise ValueError(f"{name} must be booleans (got NaN or inf)")
@@ -513,29 +555,23 @@ class SurvivalWorld:
 
     # --- docking -----------------------------------------------------------------------------
     def _detect_docking(self) -> None:
-        w, d = self.world, self.world.data
-        free = self.alive & ~self.docked & ~self._in_reflex
-        free &= self.reflex_steps_left == 0
-        if not free.any() or d.ncon == 0:
+        # One lookup finds teeth/electrode contacts among all contacts: teeth geoms have bit 1,
+        # electrodes bit 2, so a pair ORs to 3 exactly when it is teeth on electrode.
+        geom = self.world.data.contact.geom
+        code = self._dock_code[geom]
+        pair = np.bitwise_or(code[:, 0], code[:, 1])
+        hits = np.flatnonzero(pair == 3)
+        if not len(hits):
             return
-        # Cheap geometric pre-check: is any free robot's teeth near any pack?
-        teeth_xy = d.geom_xpos[w.teeth_geom, :2]
-        delta = teeth_xy[:, None, :] - self._pack_xy[None, :, :]
-        near = np.einsum("ijk,ijk->ij", delta, delta).min(axis=1) < _DOCK_PRECHECK_RADIUS**2
-        near &= free
-        if not near.any():
-            return
-        geom = d.contact.geom
-        robot = self._teeth_owner[geom]
-        pack = self._electrode_owner[geom]
-        hit_a = (robot[:, 0] >= 0) & (pack[:, 1] >= 0)
-        hit_b = (robot[:, 1] >= 0) & (pack[:, 0] >= 0)
-        if not (hit_a.any() or hit_b.any()):
-            return
-        robots = np.concatenate([robot[hit_a, 0], robot[hit_b, 1]])
-        packs = np.concatenate([pack[hit_a, 1], pack[hit_b, 0]])
-        for i, j in zip(robots.tolist(), packs.tolist(), strict=True):
-            if near[i] and not self.docked[i] and self._pack_ahead(i, j):
+        teeth_owner, electrode_owner = self._teeth_owner_list, self._electrode_owner_list
+        for g1, g2 in geom[hits].tolist():
+            i = teeth_owner[g1]
+            if i >= 0:
+                j = electrode_owner[g2]
+            else:
+                i, j = teeth_owner[g2], electrode_owner[g1]
+            free = self.alive[i] and not self.docked[i] and not self._in_reflex[i]
+            if free and self.reflex_steps_left[i] == 0 and self._pack_ahead(i, j):
                 self._dock(i, j)
 
     def _pack_ahead(self, i: int, j: int) -> bool:
@@ -616,28 +652,49 @@ class SurvivalWorld:
         return dist, cos
 
     def _detect_mating(self) -> None:
+        # Plain Python over the signalling pairs: with a few robots this is several times
+        # cheaper than the (n, n) numpy version (ir_geometry), and it runs every step.
         cfg = self.config
         sig = self._mate_signal & self.alive & ~self.docked
-        dist, cos = self._ir_pairs()
-        ok = sig[:, None] & sig[None, :]
-        ok &= dist <= cfg.mate_distance
-        ok &= cos >= self._cos_mate
-        ok &= ok.T  # both ports must face each other
-        np.fill_diagonal(ok, False)
-        self._mate_streak += 1
-        self._mate_streak[~ok] = 0
-        ready = np.triu(self._mate_streak >= cfg.mate_consecutive_steps, k=1)
-        if not ready.any():
-            return
+        who = np.flatnonzero(sig).tolist()
+        pos = self.world.data.site_xpos[self._ir_sites].tolist()
+        reach2 = cfg.mate_distance**2
+        close = []
+        for a_k, a in enumerate(who):
+            pa = pos[a]
+            for b in who[a_k + 1 :]:
+                pb = pos[b]
+                dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
+                d2 = dx * dx + dy * dy + dz * dz
+                if 0.0 < d2 <= reach2:
+                    close.append((a, b, d2, dx, dy, dz))
+        facing = []
+        if close:
+            axes = self.world.data.site_xmat[self._ir_sites].tolist()  # row-major 3x3
+            limit = self._cos_mate
+            for a, b, d2, dx, dy, dz in close:
+                za, zb = axes[a], axes[b]  # each port's z axis: (m[2], m[5], m[8])
+                dist = math.sqrt(d2)
+                if (za[2] * dx + za[5] * dy + za[8] * dz) >= limit * dist and (
+                    -(zb[2] * dx + zb[5] * dy + zb[8] * dz) >= limit * dist
+                ):
+                    facing.append((d2, a, b))
+        # Consecutive-step streaks: pairs that hold the condition count up, all others reset.
+        streak = self._mate_streak
+        previous = {(a, b): int(streak[a, b]) for _, a, b in facing}
+        if self._streak_active:
+            streak[:] = 0
+        for (a, b), k in previous.items():
+            streak[a, b] = streak[b, a] = k + 1
+        self._streak_active = bool(facing)
+        ready = sorted(p for p in facing if streak[p[1], p[2]] >= cfg.mate_consecutive_steps)
         # A robot exchanges with one partner per step: nearest pairs first (deterministic).
-        pairs = np.argwhere(ready)
-        order = np.lexsort((pairs[:, 1], pairs[:, 0], dist[pairs[:, 0], pairs[:, 1]]))
         ev = self.events
-        for a, b in pairs[order].tolist():
+        for _, a, b in ready:
             if ev.mate_partner[a] < 0 and ev.mate_partner[b] < 0:
                 ev.mate_partner[a] = b
                 ev.mate_partner[b] = a
-                self._mate_streak[a, b] = self._mate_streak[b, a] = 0
+                streak[a, b] = streak[b, a] = 0
                 ev.any = True
 
     # --- contacts ------------------------------------------------------------------------------
