@@ -1,9 +1,11 @@
 """The omni camera's projection: which bearing and elevation each pixel of the 360° strip sees.
 
 One robot's omni image is a strip of ``n_views`` pinhole views side by side, left to right in
-order of decreasing bearing, so the strip is continuous: for 4 views the columns run from the
-back (bearing +225° = −135°) over the left, the front (the middle of the strip) and the right
-back to −135°. Each view has a vertical image plane with a downward lens shift (see
+order of decreasing bearing, so the strip is continuous (and wraps around from its last column
+to its first). View ``k`` looks along bearing ``π − 2πk/n``: for 4 views the tiles are back,
+left, front, right (the views of the MJCF cameras ``omni_back``, ``omni_left``, ``omni_front``,
+``omni_right``), and the columns run from bearing +225° (= −135°) to −135°, straight ahead at
+the centre of the third tile. Each view has a vertical image plane with a downward lens shift (see
 :mod:`cyber_rodent.vision.config`), so in view coordinates (x forward, y left, z up, all relative
 to the camera) a point projects to
 

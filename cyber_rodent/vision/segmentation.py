@@ -1,0 +1,289 @@
+"""Colour segmentation of omni strips (OpenCV): blobs with bearing, distance and pixel area.
+
+What the real CR's vision does, on the simulated image:
+
+1. HSV thresholds (from :class:`CameraConfig`) give one binary mask per colour class; red wraps
+   around hue 0.
+2. Connected components (8-connectivity) of each mask, per robot. A strip is a full circle, so a
+   blob cut by the strip's left/right edge is joined back into one.
+3. Battery packs only: the grey electrode ring cuts a pack's blue into an upper and a lower band.
+   Components that overlap in bearing, have similar widths and are separated vertically by less
+   than the taller one's height are grouped into one target (see :func:`_group_stacked`).
+4. Per blob: **pixel area**; **bearing** = circular mean of its pixels' column bearings;
+   **distance** from image geometry with the camera height, as a real omni camera allows: the
+   blob's bottom edge is the target's near bottom rim (known height, e.g. the floor for a pack),
+   its top edge the far top rim (known height), and a point of known height seen ``v`` below the
+   horizon lies at horizontal distance ``Δh·sqrt(1+u²)/v`` (see
+   :class:`~cyber_rodent.vision.projection.OmniProjection`). The two edge estimates are
+   combined with weights ``v²`` (the lower edge is more precise); if the bottom edge is cut off
+   by the frame or hidden behind something (its estimate is farther than the top edge's by more
+   than the pixel quantisation allows), the top edge alone is used.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from cyber_rodent.vision.config import CameraConfig, ColourThreshold
+from cyber_rodent.vision.projection import OmniProjection
+from cyber_rodent.vision.targets import TargetGeometry
+from cyber_rodent.vision.types import BATTERY, N_CLASSES
+
+#: Pixel tolerance on each edge when deciding that a blob's bottom edge is hidden: the two
+#: distance estimates may disagree by the effect of this many pixels on each before the bottom
+#: one is dropped.
+_EDGE_TOLERANCE_PX = 1.5
+
+
+def _hsv_bounds(t: ColourThreshold) -> list[tuple[np.ndarray, np.ndarray]]:
+    """inRange bounds for a threshold; two intervals when the hue range wraps around 180."""
+    if t.hue_low <= t.hue_high:
+        hues = [(t.hue_low, t.hue_high)]
+    else:
+        hues = [(t.hue_low, 179), (0, t.hue_high)]
+    return [
+        (
+            np.array([lo, t.sat_min, t.val_min], dtype=np.uint8),
+            np.array([hi, 255, 255], dtype=np.uint8),
+        )
+        for lo, hi in hues
+    ]
+
+
+class OmniSegmenter:
+    """Finds the coloured targets in omni strips.
+
+    Args:
+        config: the camera (thresholds, resolution, field of view, minimum blob area).
+        geometry: camera height and target shapes (from :func:`target_geometry`).
+    """
+
+    def __init__(self, config: CameraConfig, geometry: TargetGeometry):
+        self.config = config
+        self.geometry = geometry
+        self.projection = OmniProjection(config)
+        self._bounds = [_hsv_bounds(t) for t in config.thresholds]
+        self._cos_col = np.cos(self.projection.column_bearing)
+        self._sin_col = np.sin(self.projection.column_bearing)
+
+    # ------------------------------------------------------------------------------------
+    def masks(self, rgb: np.ndarray) -> np.ndarray:
+        """Binary masks (uint8 0/255) of the three classes for an RGB image of any height.
+
+        Args:
+            rgb: (rows, strip_width, 3) uint8 RGB, e.g. all robots' strips stacked.
+
+        Returns:
+            (3, rows, strip_width) uint8, class order LED, FACE, BATTERY.
+        """
+        rgb = np.ascontiguousarray(rgb)
+        hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV)
+        out = np.empty((N_CLASSES,) + rgb.shape[:2], dtype=np.uint8)
+        for c, bounds in enumerate(self._bounds):
+            cv2.inRange(hsv, bounds[0][0], bounds[0][1], dst=out[c])
+            for lo, hi in bounds[1:]:
+                cv2.bitwise_or(out[c], cv2.inRange(hsv, lo, hi), dst=out[c])
+        return out
+
+    def detect(self, strips: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Detections in the strips of all robots.
+
+        Args:
+            strips: (n_robots, height, strip_width, 3) uint8 RGB.
+
+        Returns:
+            Flat arrays ``robot, cls, bearing, distance, area`` (one entry per blob) and, for
+            overlays, the ``masks`` (3, n_robots, height, strip_width).
+        """
+        n, h, w, _ = strips.shape
+        masks = self.masks(strips.reshape(n * h, w, 3)).reshape(N_CLASSES, n, h, w)
+        out: list[list] = [[], [], [], [], []]
+        for i in range(n):
+            for c in range(N_CLASSES):
+                mask = masks[c, i]
+                if not mask.any():
+                    continue
+                bearing, distance, area = self.measure_blobs(mask, c)
+                keep = (area >= self.config.min_blob_area) & (distance <= self.config.max_range)
+                k = int(keep.sum())
+                out[0].append(np.full(k, i))
+                out[1].append(np.full(k, c))
+                out[2].append(bearing[keep])
+                out[3].append(distance[keep])
+                out[4].append(area[keep])
+        if not out[0]:
+            empty = np.zeros(0)
+            return (empty.astype(np.int64), empty.astype(np.int64), empty, empty, empty, masks)
+        robot, cls, bearing, distance, area = (np.concatenate(a) for a in out)
+        return (
+            robot.astype(np.int64),
+            cls.astype(np.int64),
+            bearing,
+            distance,
+            area.astype(float),
+            masks,
+        )
+
+    # ------------------------------------------------------------------------------------
+    def measure_blobs(self, mask: np.ndarray, cls: int) -> tuple[np.ndarray, ...]:
+        """Bearing (rad), distance (m) and pixel area of every blob of one class in one strip.
+
+        Args:
+            mask: (height, strip_width) uint8, nonzero where the class's colour is.
+            cls: the colour class (selects the target shape for the distance estimate).
+        """
+        n_labels, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_32S)
+        parent = np.arange(n_labels)
+        _join_wrapped(labels, parent)
+        rows, cols = np.nonzero(labels)
+        root = _roots(parent)[labels[rows, cols]]
+        groups, group = np.unique(root, return_inverse=True)
+        n_groups = len(groups)
+        area = np.bincount(group, minlength=n_groups).astype(float)
+        sin_sum = np.bincount(group, weights=self._sin_col[cols], minlength=n_groups)
+        cos_sum = np.bincount(group, weights=self._cos_col[cols], minlength=n_groups)
+        top = np.full(n_groups, mask.shape[0], dtype=np.int64)
+        bottom = np.full(n_groups, -1, dtype=np.int64)
+        np.minimum.at(top, group, rows)
+        np.maximum.at(bottom, group, rows)
+        bearing = np.arctan2(sin_sum, cos_sum)
+        if cls == BATTERY and n_groups > 1:
+            lo, hi = self._angular_extent(group, cols, bearing)
+            merged = _group_stacked(bearing, lo, hi, top, bottom)
+            if merged is not None:
+                m_groups, m_of = np.unique(merged, return_inverse=True)
+                k = len(m_groups)
+                area = np.bincount(m_of, weights=area, minlength=k)
+                sin_sum = np.bincount(m_of, weights=sin_sum, minlength=k)
+                cos_sum = np.bincount(m_of, weights=cos_sum, minlength=k)
+                new_top = np.full(k, mask.shape[0], dtype=np.int64)
+                new_bottom = np.full(k, -1, dtype=np.int64)
+                np.minimum.at(new_top, m_of, top)
+                np.maximum.at(new_bottom, m_of, bottom)
+                top, bottom = new_top, new_bottom
+                bearing = np.arctan2(sin_sum, cos_sum)
+        distance = self.distance_from_edges(
+            cls, bearing, top.astype(float), bottom.astype(float) + 1.0
+        )
+        return bearing, distance, area
+
+    def distance_from_edges(
+        self, cls: int, bearing: np.ndarray, top_edge: np.ndarray, bottom_edge: np.ndarray
+    ) -> np.ndarray:
+        """Horizontal distance of blobs of class ``cls`` from their top and bottom image edges.
+
+        Args:
+            cls: colour class (its target shape gives the heights of the edges).
+            bearing: (k,) rad, the blobs' bearings (select the view and the abscissa u).
+            top_edge, bottom_edge: (k,) continuous row coordinates of the blobs' upper and
+                lower boundaries (0 = top of the strip; a blob covering rows a..b has edges
+                a and b + 1).
+        """
+        proj = self.projection
+        shape = self.geometry.shapes[cls]
+        hc = self.geometry.camera_height
+        _, offset = proj.view_coordinates(bearing)
+        u = np.tan(offset)
+        v_top = proj.v_at_row(top_edge)
+        v_bot = proj.v_at_row(bottom_edge)
+        d_top = proj.horizontal_distance(hc - shape.z_top, v_top, u) - shape.rim_offset
+        d_bot = proj.horizontal_distance(hc - shape.z_bottom, v_bot, u) + shape.rim_offset
+        pixel = 1.0 / proj.px_per_v
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tolerance = _EDGE_TOLERANCE_PX * pixel * (1.0 / np.abs(v_top) + 1.0 / np.abs(v_bot))
+            bottom_ok = (bottom_edge < self.config.height) & (d_bot <= d_top * (1.0 + tolerance))
+            w_top, w_bot = v_top**2, v_bot**2
+            both = (w_top * d_top + w_bot * d_bot) / (w_top + w_bot)
+        d = np.where(bottom_ok, both, d_top)
+        d = np.where(np.isfinite(d), d, np.inf)
+        return np.maximum(d, 0.0)
+
+    def _angular_extent(
+        self, group: np.ndarray, cols: np.ndarray, bearing: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Each group's bearing interval relative to its mean bearing (rad): (low, high),
+        pixel edges included (low < 0 < high)."""
+        dev = np.angle(np.exp(1j * (bearing[group] - self.projection.column_bearing[cols])))
+        # dev > 0: the pixel is to the right of (at a smaller bearing than) the mean.
+        half_px = 0.5 * (2.0 * math.pi / self.config.strip_width)
+        lo = np.zeros(len(bearing))
+        hi = np.zeros(len(bearing))
+        np.maximum.at(lo, group, dev)
+        np.maximum.at(hi, group, -dev)
+        return -(lo + half_px), hi + half_px
+
+
+def _roots(parent: np.ndarray) -> np.ndarray:
+    """Resolve a union-find parent array to every element's root."""
+    root = parent.copy()
+    while True:
+        nxt = root[root]
+        if np.array_equal(nxt, root):
+            return root
+        root = nxt
+
+
+def _union(parent: np.ndarray, a: int, b: int) -> None:
+    ra, rb = int(parent[a]), int(parent[b])
+    while parent[ra] != ra:
+        ra = int(parent[ra])
+    while parent[rb] != rb:
+        rb = int(parent[rb])
+    if ra != rb:
+        parent[max(ra, rb)] = min(ra, rb)
+
+
+def _join_wrapped(labels: np.ndarray, parent: np.ndarray) -> None:
+    """Join components that touch across the strip's left/right seam (8-connectivity)."""
+    left, right = labels[:, 0], labels[:, -1]
+    if not (left.any() and right.any()):
+        return
+    for dr in (-1, 0, 1):
+        a = left[max(dr, 0) : len(left) + min(dr, 0)]
+        b = right[max(-dr, 0) : len(right) + min(-dr, 0)]
+        both = (a > 0) & (b > 0)
+        for la, lb in set(zip(a[both].tolist(), b[both].tolist(), strict=True)):
+            _union(parent, la, lb)
+
+
+def _group_stacked(
+    bearing: np.ndarray, lo: np.ndarray, hi: np.ndarray, top: np.ndarray, bottom: np.ndarray
+) -> np.ndarray | None:
+    """Group blobs stacked vertically at the same bearing (a pack cut by its electrode ring).
+
+    The two bands of one pack have the same angular width (same cylinder, same distance) and
+    the ring between them is shorter than the taller band, so two blobs are grouped when their
+    bearing intervals overlap by at least 70 % of the narrower one's width, the narrower is at
+    least 45 % as wide as the wider (less only if part of a band is hidden), and the vertical
+    gap between them is smaller than the taller one's height. A farther pack seen *above* a
+    nearer one without touching it must be more than 2.4 times as far (its bottom rim, 17 cm
+    below the camera, has to appear above the near pack's top, 7 cm below), hence at most 41 %
+    as wide: it stays separate.
+
+    Args:
+        bearing: (k,) mean bearings; lo, hi: bearing interval relative to the mean (rad);
+        top, bottom: first and last image row of each blob.
+
+    Returns:
+        The group label of each blob, or None if nothing is grouped.
+    """
+    k = len(bearing)
+    parent = np.arange(k)
+    joined = False
+    height = bottom - top + 1
+    width = hi - lo
+    for a in range(k):
+        for b in range(a + 1, k):
+            shift = math.remainder(float(bearing[b] - bearing[a]), 2.0 * math.pi)
+            overlap = min(hi[a], shift + hi[b]) - max(lo[a], shift + lo[b])
+            narrow, wide = sorted((float(width[a]), float(width[b])))
+            if overlap < 0.7 * narrow or narrow < 0.45 * wide:
+                continue
+            gap = max(top[a], top[b]) - min(bottom[a], bottom[b]) - 1
+            if gap < max(height[a], height[b]):
+                _union(parent, a, b)
+                joined = True
+    return _roots(parent) if joined else None
