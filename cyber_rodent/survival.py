@@ -12,9 +12,11 @@ mechanics of the simulated world, on top of :class:`cyber_rodent.world.World`:
   the next agent's energy (:meth:`SurvivalWorld.set_energy`).
 * **Docking.** A capture happens when MuJoCo reports a contact between a robot's charging
   teeth and a pack's electrode ring *and* the pack lies ahead of the robot within
-  ``dock_bearing_tolerance_deg``. Brushing a pack with the side or back, or clipping it with a
-  corner of the teeth while passing beside it, is not a capture: those contacts happen with
-  the pack at 20° or more off the heading (measured, see ``tests/test_survival_physics.py``).
+  ``dock_bearing_tolerance_deg``. Brushing a pack with the side or back is not a capture (no
+  teeth contact), and neither is catching the electrode ring with a corner of the teeth on an
+  off-centre approach: that contact has the pack 16-24° off the heading (measured in
+  ``tests/test_survival_physics.py``) and is refused until the robot, still pushing, pivots
+  its teeth onto the pack.
   While recharging the robot is held in place by a weld of its chassis to the world, an
   equality constraint of the world model (``world.dock_hold_name``); its wheels are stopped.
   Packs are static and never used up.
@@ -83,9 +85,10 @@ class SurvivalConfig:
             default spin speed a step turns 0.375 rad, so 4..8 steps turn 86°..172°.
         reflex_wheel_speed: wheel rim speed of the reflex spin, m/s.
         dock_bearing_tolerance_deg: a teeth/electrode contact is a capture only if the pack's
-            centre lies within this angle of the robot's heading. 15° admits every head-on
-            approach whose teeth centre is within 5 cm of the pack's axis and rejects the
-            corner contacts of driving past a pack (which happen at 20° or more).
+            centre lies within this angle of the robot's heading. With 6 cm wide teeth and a
+            9 cm electrode ring, 15° admits contacts with the pack's axis up to about 4.7 cm
+            off the robot's centre line, and refuses the glancing contacts of a teeth corner
+            further out (16-29°).
         mate_angle_deg: each IR port must face the other port within this angle (paper: about
             ±15°; DESIGN.md §5).
         mate_distance: largest IR port-to-port distance for an exchange, m (DESIGN.md: 0.35).

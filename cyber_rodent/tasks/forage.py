@@ -22,7 +22,7 @@ class Forage(CyberRodentTask):
     worth more.
 
     Episode: ``episode_steps`` (default 100) control steps, cut with discount 1; it also ends
-    with discount 0 if the robot's energy runs out (only possible with ``episode_steps`` >=
+    with discount 0 if the robot's energy runs out (only possible with ``episode_steps`` >
     ``initial_energy``).
 
     Args:
