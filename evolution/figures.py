@@ -1,0 +1,176 @@
+"""Publication figures from statistics tables: the paper's Fig. 6, and a Fig. 7-style plot.
+
+Figures are written as PNG (for READMEs and slides) and PDF (vector, for papers), with
+readable fonts, axis labels with units, and the paper's colours (EE blue, CE red). Matplotlib
+runs on the non-interactive Agg backend, so this works on headless machines.
+
+Fig. 6 aggregates like the paper: each run contributes its per-generation mean over the agents
+that completed the survival task (``batteries_mean``, ``matings_mean`` of
+:class:`evolution.stats.GenerationStats`); the figure shows the mean over runs (thick line) and
+± one standard deviation over runs (thin dotted lines), per method. A generation in which a run
+had no agent complete the task contributes nothing for that run (NaN is skipped).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+#: Method name → (label, colour), the paper's colours.
+METHOD_STYLE = {
+    "ee": ("Embodied evolution (EE)", "#1f4fd1"),
+    "ce": ("Centralised evolution (CE)", "#d1261f"),
+}
+FIGURE_FORMATS = ("png", "pdf")
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    plt.rcParams.update(
+        {
+            "font.size": 11,
+            "axes.titlesize": 12,
+            "axes.labelsize": 11,
+            "legend.fontsize": 10,
+            "figure.dpi": 110,
+            "savefig.dpi": 200,
+            "axes.spines.top": False,
+            "axes.spines.right": False,
+        }
+    )
+    return plt
+
+
+def aggregate_runs(tables: Sequence[pd.DataFrame], column: str) -> pd.DataFrame:
+    """Mean and std over runs of ``column``, per generation.
+
+    Args:
+        tables: one statistics table per run (columns ``generation`` and ``column``).
+        column: the per-run quantity, e.g. ``batteries_mean``.
+
+    Returns:
+        A frame indexed by generation with columns ``mean``, ``std`` (population std over the
+        runs that have a value) and ``runs`` (how many runs contributed).
+    """
+    if not tables:
+        raise ValueError("aggregate_runs needs at least one statistics table")
+    for t in tables:
+        missing = {"generation", column} - set(t.columns)
+        if missing:
+            raise ValueError(f"statistics table lacks column(s) {sorted(missing)}")
+    wide = pd.concat(
+        [t.set_index("generation")[column].rename(i) for i, t in enumerate(tables)], axis=1
+    )
+    values = wide.to_numpy(dtype=float)
+    counts = np.sum(~np.isnan(values), axis=1)
+    with warnings.catch_warnings():  # 'mean of empty slice' where no run has a value
+        warnings.simplefilter("ignore", category=RuntimeWarning)
+        mean = np.nanmean(values, axis=1)
+        std = np.nanstd(values, axis=1)
+    return pd.DataFrame({"mean": mean, "std": std, "runs": counts}, index=wide.index)
+
+
+def _save(fig, out_base: Path) -> list[Path]:
+    out_base.parent.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for ext in FIGURE_FORMATS:
+        path = out_base.with_suffix(f".{ext}")
+        fig.savefig(path, bbox_inches="tight")
+        paths.append(path)
+    return paths
+
+
+def plot_fig6(
+    runs_by_method: Mapping[str, Sequence[pd.DataFrame]], out_base: str | Path
+) -> list[Path]:
+    """Fig. 6 (a) batteries and (b) matings per generation, mean ± std over runs, per method.
+
+    Args:
+        runs_by_method: e.g. ``{"ee": [table_seed0, ...], "ce": [...]}``; any subset of methods.
+        out_base: output path without extension; ``.png`` and ``.pdf`` are written.
+
+    Returns:
+        The written file paths.
+    """
+    if not runs_by_method or not any(runs_by_method.values()):
+        raise ValueError("plot_fig6 needs at least one run")
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(10.5, 4.0))
+    panels = (
+        ("batteries_mean", "Captured batteries per agent", "(a) Captured batteries"),
+        ("matings_mean", "Matings per agent", "(b) Matings"),
+    )
+    for ax, (column, ylabel, title) in zip(axes, panels, strict=True):
+        for method, tables in runs_by_method.items():
+            if not tables:
+                continue
+            label, colour = METHOD_STYLE.get(method, (method.upper(), None))
+            agg = aggregate_runs(tables, column)
+            gen = agg.index.to_numpy()
+            n = int(agg["runs"].max())
+            ax.plot(gen, agg["mean"], color=colour, lw=2.2, label=f"{label}, {n} runs")
+            ax.plot(gen, agg["mean"] + agg["std"], color=colour, lw=0.9, ls=":")
+            ax.plot(gen, agg["mean"] - agg["std"], color=colour, lw=0.9, ls=":")
+        ax.set_xlabel("Generation")
+        ax.set_ylabel(ylabel)
+        ax.set_title(title, loc="left")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="lower right", frameon=False)
+    fig.suptitle(
+        "Agents that completed the survival task (full lifetime, ≥ 1 mating); "
+        "mean over runs (thick) ± std (dotted)",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    paths = _save(fig, Path(out_base))
+    plt.close(fig)
+    return paths
+
+
+def plot_per_robot(
+    per_robot: pd.DataFrame, out_base: str | Path, title: str | None = None
+) -> list[Path]:
+    """A Fig. 7-style plot: mean captured batteries per generation, one line per robot.
+
+    Args:
+        per_robot: columns ``generation``, ``robot``, ``batteries_mean`` (the mean over the
+            robot's agents that lived a full lifetime, unmated agents scored 0, as the paper's
+            Fig. 7 caption says), optionally ``batteries_std``.
+        out_base: output path without extension.
+        title: optional figure title.
+    """
+    missing = {"generation", "robot", "batteries_mean"} - set(per_robot.columns)
+    if missing:
+        raise ValueError(f"per-robot table lacks column(s) {sorted(missing)}")
+    if per_robot.empty:
+        raise ValueError("per-robot table is empty")
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 4.0))
+    for robot, rows in per_robot.sort_values("generation").groupby("robot"):
+        ax.plot(
+            rows["generation"],
+            rows["batteries_mean"],
+            marker="o",
+            ms=3.5,
+            lw=1.8,
+            label=f"CR {int(robot) + 1}",
+        )
+    ax.set_xlabel("Generation")
+    ax.set_ylabel("Captured batteries per agent")
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend(frameon=False)
+    ax.set_title(title or "Captured batteries per robot (unmated agents scored 0)", fontsize=11)
+    fig.tight_layout()
+    paths = _save(fig, Path(out_base))
+    plt.close(fig)
+    return paths

@@ -1,0 +1,67 @@
+"""Figures: the aggregation over runs (hand-computed) and that files are written and decode."""
+
+from __future__ import annotations
+
+import imageio.v3 as iio
+import numpy as np
+import pandas as pd
+import pytest
+
+from evolution.figures import aggregate_runs, plot_fig6, plot_per_robot
+
+
+def table(batteries, matings) -> pd.DataFrame:
+    return pd.DataFrame(
+        {
+            "generation": np.arange(len(batteries)),
+            "batteries_mean": batteries,
+            "matings_mean": matings,
+        }
+    )
+
+
+def test_aggregate_runs_hand_computed() -> None:
+    a = table([10.0, 20.0, np.nan], [1.0, 2.0, 3.0])
+    b = table([14.0, 20.0, 6.0], [3.0, 2.0, 1.0])
+    agg = aggregate_runs([a, b], "batteries_mean")
+    assert agg["mean"].tolist()[:2] == [12.0, 20.0]
+    assert agg["std"].tolist()[:2] == [2.0, 0.0]  # population std of (10, 14) is 2
+    # Generation 2: only run b has completed agents.
+    assert agg.loc[2, "mean"] == 6.0 and agg.loc[2, "runs"] == 1
+
+
+def test_aggregate_runs_different_lengths() -> None:
+    agg = aggregate_runs([table([1.0, 2.0], [0, 0]), table([3.0], [0])], "batteries_mean")
+    assert agg["runs"].tolist() == [2, 1] and agg["mean"].tolist() == [2.0, 2.0]
+
+
+def test_aggregate_runs_errors() -> None:
+    with pytest.raises(ValueError, match="at least one"):
+        aggregate_runs([], "batteries_mean")
+    with pytest.raises(ValueError, match="lacks"):
+        aggregate_runs([pd.DataFrame({"generation": [0]})], "batteries_mean")
+
+
+def test_plot_fig6_writes_png_and_pdf(tmp_path) -> None:
+    rng = np.random.default_rng(0)
+    runs = {
+        m: [table(rng.uniform(10, 25, 8), rng.uniform(1, 4, 8)) for _ in range(3)]
+        for m in ("ee", "ce")
+    }
+    paths = plot_fig6(runs, tmp_path / "fig6")
+    assert [p.suffix for p in paths] == [".png", ".pdf"]
+    image = iio.imread(paths[0])
+    assert image.ndim == 3 and image.shape[0] > 300 and image.std() > 10
+    assert paths[1].read_bytes().startswith(b"%PDF")
+
+
+def test_plot_per_robot(tmp_path) -> None:
+    rows = [
+        {"generation": g, "robot": r, "batteries_mean": g + r} for g in range(5) for r in range(3)
+    ]
+    paths = plot_per_robot(pd.DataFrame(rows), tmp_path / "fig7")
+    assert iio.imread(paths[0]).shape[0] > 200
+    with pytest.raises(ValueError, match="empty"):
+        plot_per_robot(
+            pd.DataFrame(columns=["generation", "robot", "batteries_mean"]), tmp_path / "x"
+        )
