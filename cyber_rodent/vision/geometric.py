@@ -20,7 +20,8 @@ measures how well they agree):
   one's blob (colour segmentation cannot separate them) and is not reported separately.
 
 Every index is computed at construction; a call of :meth:`GeometricVision.observe` is a fixed
-sequence of small vectorised numpy operations plus one ``mj_multiRay`` per robot.
+sequence of small vectorised numpy operations plus one ``mj_multiRay`` per robot, cast only at
+the targets that could be seen at all (``benchmarks/vision_cost.py`` measures it).
 """
 
 from __future__ import annotations
@@ -39,11 +40,13 @@ from cyber_rodent.vision.types import BATTERY, FACE, LED, VisionFrame
 from cyber_rodent.world import World
 
 #: Occlusion samples, as (lateral, vertical) fractions of a target's half width and half
-#: height. Packs get a 3 × 3 grid; the lower row sits below and the upper rows above the grey
-#: electrode ring so that every sample aims at blue. The LED ring and the face are flat bands:
-#: three samples across at mid height.
-_PACK_SAMPLES = tuple((lat, vert) for vert in (-0.7, 0.5, 0.96) for lat in (-0.6, 0.0, 0.6))
-_FACE_SAMPLES = tuple((lat, vert) for vert in (-0.7, 0.0, 0.7) for lat in (-0.6, 0.0, 0.6))
+#: height. Packs get 3 × 2 samples: the lower row below and the upper row above the grey
+#: electrode ring, so that every sample aims at blue; the upper row at the top rim catches a
+#: pack whose top peeks over an obstacle. Faces get 3 × 2 (their top edge peeks over packs);
+#: the LED ring is a thin band: three samples across at mid height. A 3 × 3 grid gave the same
+#: agreement with the rendered camera (98.7 % vs 98.6 %) for 40 % more rays.
+_PACK_SAMPLES = tuple((lat, vert) for vert in (-0.7, 0.96) for lat in (-0.6, 0.0, 0.6))
+_FACE_SAMPLES = tuple((lat, vert) for vert in (-0.6, 0.6) for lat in (-0.6, 0.0, 0.6))
 _LED_SAMPLES = ((-0.6, 0.0), (0.0, 0.0), (0.6, 0.0))
 #: Geom groups that are rendered (mjvOption's default), hence able to hide a target.
 _VISIBLE_GROUPS = np.array([1, 1, 1, 0, 0, 0], dtype=np.uint8)
@@ -121,20 +124,22 @@ class GeometricVision:
         self._s_target = np.array(s_target, dtype=np.int64)
         self._s_lat = np.array(s_lat)[None, :, None]
         self._s_dz = np.array(s_dz)[None, :]
-        self._s_geom = self.target_geom[self._s_target][None, :]
+        self._s_geom = self.target_geom[self._s_target]
         n_samples = len(s_target)
         self._sample_to_target = np.zeros((n_samples, n_targets))
         self._sample_to_target[np.arange(n_samples), self._s_target] = 1.0
-        self._samples_per_target = self._sample_to_target.sum(axis=0)
+        self._inv_samples = 1.0 / self._sample_to_target.sum(axis=0)
         self._own = self.target_owner[None, :] == np.arange(n)[:, None]
         self._same_class = self.target_cls[:, None] == self.target_cls[None, :]
         widen_ray_culling_bounds(world.model)
         self._cam_site = np.asarray(world.camera_site, dtype=np.int64)
         self._exclude = [int(b) for b in world.chassis_body]
         # Output buffers of the ray casts (reused every call).
-        self._ray_geom = np.zeros((n, n_samples), dtype=np.int32)
-        self._ray_dist = np.zeros((n, n_samples))
+        self._ray_geom = np.zeros(n_samples, dtype=np.int32)
+        self._ray_dist = np.zeros(n_samples)
         self._cutoff = float(self.config.max_range) + 1.0
+        self._tan_el_min = math.tan(math.radians(self.config.elevation_min_deg))
+        self._tan_el_max = math.tan(math.radians(self.config.elevation_max_deg))
 
     # ------------------------------------------------------------------------------------
     def observe(self) -> VisionFrame:
@@ -156,7 +161,9 @@ class GeometricVision:
         """Every robot's view of every target (noise-free), before the nearest is chosen.
 
         Targets are ordered: the LED of each robot, the face of each robot, each pack
-        (``target_cls``, ``target_owner`` give class and owning robot).
+        (``target_cls``, ``target_owner`` give class and owning robot). Rays are cast only at
+        targets that could be seen at all (another robot's lit LED, a face turned towards the
+        camera, anything in range and large enough if fully visible).
         """
         m, d = self.world.model, self.world.data
         n = self.n_robots
@@ -164,58 +171,61 @@ class GeometricVision:
         rot = d.site_xmat[self._cam_site].reshape(n, 3, 3)
         centre = d.geom_xpos[self.target_geom]  # (T, 3)
         gmat = d.geom_xmat[self.target_geom].reshape(-1, 3, 3)
-        diff = centre[None, :, :] - cam[:, None, :]  # (n, T, 3)
-        rh_world = np.hypot(diff[..., 0], diff[..., 1])
-        rh_world = np.maximum(rh_world, 1e-9)
+        diff = centre[None, :, :] - cam[:, None, :]  # (n, T, 3) world frame
+        rh_world = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), 1e-9)
         # Lateral direction of each target as seen by each robot: perpendicular to the line of
         # sight for cylinders, the plate's own width axis for plates.
-        lateral = np.zeros_like(diff)
+        lateral = np.empty_like(diff)
         lateral[..., 0] = -diff[..., 1] / rh_world
         lateral[..., 1] = diff[..., 0] / rh_world
-        plate_axis = gmat[:, :, 1]  # (T, 3) y axis of each target geom
-        lateral = np.where(self._plate[None, :, None], plate_axis[None, :, :], lateral)
+        lateral[..., 2] = 0.0
+        lateral[:, self._plate, :] = gmat[self._plate, :, 1][None, :, :]
 
-        # --- occlusion: rays from each camera to every sample point ---------------------
+        # --- each target's axis in the camera frame -----------------------------------
+        local = diff @ rot  # local_j = sum_i R_ij diff_i
+        bearing = np.arctan2(local[..., 1], local[..., 0])
+        distance = np.hypot(local[..., 0], local[..., 1])
+        width_px, height_px, half_angle = self._projected_size(
+            local, lateral @ rot, bearing, distance
+        )
+        full_area = width_px * height_px
+        candidate = (full_area >= self.config.min_blob_area) & (distance <= self.config.max_range)
+        candidate &= ~self._own
+        candidate[:, :n] &= self.world.led_on[None, :]  # a dark LED is not a green target
+        # Plates (faces) show only their front: normal (the body's x axis) towards the camera.
+        normal = gmat[self._plate, :, 0]  # (P, 3) x axis of each plate
+        facing = (diff[:, self._plate, :] * normal[None, :, :]).sum(axis=2) < 0.0
+        candidate[:, self._plate] &= facing
+
+        # --- occlusion and field of view, per sample ------------------------------------
         st = self._s_target
         rays = diff[:, st, :] + self._s_lat * lateral[:, st, :]
         rays[..., 2] += self._s_dz
+        sample_ok = self._in_frustum(rays @ rot) & candidate[:, st]
+        hit = np.zeros_like(sample_ok)
         for i in range(n):
+            idx = np.flatnonzero(sample_ok[i])
+            k = len(idx)
+            if k == 0:
+                continue
             mujoco.mj_multiRay(
                 m,
                 d,
                 cam[i],
-                rays[i].ravel(),
+                rays[i, idx].ravel(),
                 _VISIBLE_GROUPS,
                 1,
                 self._exclude[i],
-                self._ray_geom[i],
-                self._ray_dist[i],
+                self._ray_geom[:k],
+                self._ray_dist[:k],
                 None,
-                rays.shape[1],
+                k,
                 self._cutoff,
             )
-        hit = self._ray_geom == self._s_geom
-        # Field of view, per sample: inside the frustum of the view that contains it.
-        local_s = np.einsum("nij,nki->nkj", rot, rays)
-        hit &= self._in_frustum(local_s)
-        visible_share = (hit @ self._sample_to_target) / self._samples_per_target
-
-        # --- measurements of each target's axis ----------------------------------------
-        local = np.einsum("nij,nti->ntj", rot, diff)
-        bearing = np.arctan2(local[..., 1], local[..., 0])
-        distance = np.hypot(local[..., 0], local[..., 1])
-        width_px, height_px, half_angle = self._projected_size(
-            local, rot, lateral, bearing, distance
-        )
-        area = width_px * height_px * visible_share
-
-        seen = (area >= self.config.min_blob_area) & (distance <= self.config.max_range)
-        seen &= ~self._own
-        # An LED that is off is dark: not a green target.
-        seen[:, :n] &= self.world.led_on[None, :]
-        # Plates (faces) only show their front: normal (the body's x axis) towards the camera.
-        facing = np.einsum("ntk,tk->nt", diff, gmat[:, :, 0]) < 0.0
-        seen &= facing | ~self._plate[None, :]
+            hit[i, idx] = self._ray_geom[:k] == self._s_geom[idx]
+        visible_share = (hit @ self._sample_to_target) * self._inv_samples
+        area = full_area * visible_share
+        seen = candidate & (area >= self.config.min_blob_area)
         seen &= ~self._merged_blobs(seen, visible_share, local, bearing, distance, half_angle)
         return TargetMeasurements(
             visible=seen,
@@ -229,19 +239,26 @@ class GeometricVision:
 
     # ------------------------------------------------------------------------------------
     def _in_frustum(self, local: np.ndarray) -> np.ndarray:
-        """Whether points (camera frame, any leading shape, last axis xyz) are in view."""
+        """Whether points (camera frame, any leading shape, last axis xyz) are in view.
+
+        Points inside the elevation band that every bearing sees pass at once; only the rest
+        (rare: things very close to the robot) get the exact per-view frustum test.
+        """
         proj = self.projection
+        rh = np.maximum(np.hypot(local[..., 0], local[..., 1]), 1e-9)
+        tan_el = local[..., 2] / rh
+        inside = (tan_el >= self._tan_el_min) & (tan_el <= self._tan_el_max)
+        if inside.all():
+            return inside
         b = np.arctan2(local[..., 1], local[..., 0])
         _, offset = proj.view_coordinates(b)
-        depth = np.hypot(local[..., 0], local[..., 1]) * np.cos(offset)
-        v = local[..., 2] / np.maximum(depth, 1e-9)
+        v = tan_el / np.cos(offset)
         return (v >= proj.v_bottom) & (v <= proj.v_top)
 
     def _projected_size(
         self,
         local: np.ndarray,
-        rot: np.ndarray,
-        lateral: np.ndarray,
+        lat_local: np.ndarray,
         bearing: np.ndarray,
         distance: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -255,22 +272,19 @@ class GeometricVision:
         proj = self.projection
         view, offset = proj.view_coordinates(bearing)
         axis = proj.view_centres[view]
-        lat_local = np.einsum("nij,nti->ntj", rot, lateral) * self._half_width[None, :, None]
-        widths, edge_bearings = [], []
-        for sign in (1.0, -1.0):
-            edge = local + sign * lat_local
-            eb = np.arctan2(edge[..., 1], edge[..., 0])
-            rel = np.clip(np.angle(np.exp(1j * (eb - axis))), -_EDGE_CLIP, _EDGE_CLIP)
-            widths.append(np.tan(rel))
-            edge_bearings.append(eb)
-        du = np.abs(widths[0] - widths[1])
+        half = lat_local * self._half_width[None, :, None]
+        b_left = np.arctan2(local[..., 1] + half[..., 1], local[..., 0] + half[..., 0])
+        b_right = np.arctan2(local[..., 1] - half[..., 1], local[..., 0] - half[..., 0])
+        u_left = np.tan(np.clip(_wrap(b_left - axis), -_EDGE_CLIP, _EDGE_CLIP))
+        u_right = np.tan(np.clip(_wrap(b_right - axis), -_EDGE_CLIP, _EDGE_CLIP))
+        du = np.abs(u_left - u_right)
         cos_off = np.cos(offset)
         depth_far = np.maximum((distance + self._rim) * cos_off, 1e-9)
         depth_near = np.maximum((distance - self._rim) * cos_off, 1e-9)
         v_top = (local[..., 2] + self._half_height) / depth_far
         v_bot = (local[..., 2] - self._half_height) / depth_near
         dv = np.clip(np.minimum(v_top, proj.v_top) - np.maximum(v_bot, proj.v_bottom), 0.0, None)
-        half_angle = 0.5 * np.abs(np.angle(np.exp(1j * (edge_bearings[0] - edge_bearings[1]))))
+        half_angle = 0.5 * np.abs(_wrap(b_left - b_right))
         return du * proj.px_per_u, dv * proj.px_per_v, half_angle
 
     def _merged_blobs(
@@ -290,20 +304,27 @@ class GeometricVision:
         its bearing and elevation intervals (far top rim to near bottom rim) overlap the
         nearer one's.
         """
-        proj = self.projection
+        hidden_part = seen & (visible_share < 1.0)
+        if not hidden_part.any():
+            return hidden_part
         el_top = np.arctan2(local[..., 2] + self._half_height, distance + self._rim)
         el_bot = np.arctan2(
             local[..., 2] - self._half_height, np.maximum(distance - self._rim, 1e-9)
         )
-        sep = np.abs(np.angle(np.exp(1j * (bearing[:, :, None] - bearing[:, None, :]))))
+        sep = np.abs(_wrap(bearing[:, :, None] - bearing[:, None, :]))
+        # [i, a, b]: a (nearer, visible) swallows b, which it partly hides.
         touch = sep < half_angle[:, :, None] + half_angle[:, None, :]
         touch &= el_bot[:, :, None] < el_top[:, None, :]
         touch &= el_bot[:, None, :] < el_top[:, :, None]
-        # [i, a, b]: a (nearer, visible) swallows b, which it partly hides.
         touch &= self._same_class[None, :, :]
         touch &= distance[:, :, None] < distance[:, None, :]
-        touch &= seen[:, :, None] & (seen & (visible_share < 1.0))[:, None, :]
+        touch &= seen[:, :, None] & hidden_part[:, None, :]
         return touch.any(axis=1)
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    """Wrap angles to [-π, π)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def widen_ray_culling_bounds(model: mujoco.MjModel) -> None:
