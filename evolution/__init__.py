@@ -6,7 +6,15 @@ The world-independent core: the genome (:class:`Genome`), the 39-weight controll
 :class:`CentralisedEvolution`), the per-generation statistics (:mod:`evolution.stats`) and
 atomic checkpoints (:mod:`evolution.checkpoint`). Every number of the paper is a field of
 :class:`EvolutionConfig`.
+
+The physics side (:mod:`evolution.runner`, :mod:`evolution.api`) is imported on first use, so
+the core stays importable without MuJoCo::
+
+    from evolution import run
+    table = run(method="ee", generations=5, seed=0)
 """
+
+from typing import Any
 
 from evolution.agent import MatingRecord, Origin, VirtualAgent, fitness
 from evolution.checkpoint import (
@@ -27,7 +35,28 @@ from evolution.scheduler import (
 )
 from evolution.stats import GenerationStats, StatisticsRecorder
 
+#: Names served lazily from the physics-side modules (see ``__getattr__``).
+_LAZY = {
+    "run": "evolution.api",
+    "make_config": "evolution.api",
+    "RunConfig": "evolution.runner",
+    "EvolutionRunner": "evolution.runner",
+}
+
+
+def __getattr__(name: str) -> Any:
+    """Import the runner and the API on first use (they pull in MuJoCo and the behaviours)."""
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'evolution' has no attribute {name!r}")
+    import importlib
+
+    return getattr(importlib.import_module(module), name)
+
+
 __all__ = [
+    "EvolutionRunner",
+    "RunConfig",
     "FORAGE",
     "GENOME_LENGTH",
     "MATE",
@@ -51,8 +80,10 @@ __all__ = [
     "draw_replacement",
     "fitness",
     "load_checkpoint",
+    "make_config",
     "make_offspring",
     "next_generation",
+    "run",
     "save_checkpoint",
     "tournament",
 ]

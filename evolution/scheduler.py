@@ -78,6 +78,9 @@ class TimeSharingScheduler:
         slot_generation: (n_robots, k) generation counter of each slot.
         steps: control steps processed.
         stats: the per-generation statistics.
+        birth_log: ``(step, robot, slot, generation, origin)`` of every agent created since the
+            log was last emptied (the initial population is not logged). A runner drains it
+            into its event log after each step; it is part of the picklable state.
     """
 
     def __init__(
@@ -110,6 +113,7 @@ class TimeSharingScheduler:
         self.slot_generation = np.zeros((n, k), dtype=np.int64)
         self.stats = StatisticsRecorder()
         self.steps = 0
+        self.birth_log: list[tuple[int, int, int, int, int]] = []
 
         self.active_slot = np.zeros(n, dtype=np.intp)
         self.active = np.ones(n, dtype=bool)
@@ -276,6 +280,7 @@ class TimeSharingScheduler:
             genome, float(self.config.initial_energy), generation=generation, origin=origin
         )
         self.stats.record_birth(generation, origin)
+        self.birth_log.append((self.steps, robot, slot, generation, int(origin)))
 
     # --- method-specific hooks -------------------------------------------------------------
     def _on_death(self, robot: int, slot: int) -> None:

@@ -1,0 +1,232 @@
+"""Run embodied evolution or the centralised GA in one call.
+
+::
+
+    from evolution import run
+    table = run(method="ee", generations=5, seed=0)  # a DataFrame, one row per generation
+    table = run(method="ce", generations=5, seed=0, out_dir="runs/ce0", population_size=20)
+
+``run`` builds a :class:`~evolution.runner.RunConfig` from the paper's defaults plus any
+overrides, runs :class:`~evolution.runner.EvolutionRunner` and returns its per-generation
+statistics. With ``out_dir`` it also writes, atomically:
+
+- ``statistics.csv``: the table (after every checkpoint and at the end);
+- ``events.csv``: the event log (dockings, recharge ends, matings, deaths, births);
+- ``run.json``: config, seed, behaviour policies, versions and headline numbers;
+- ``checkpoints/gen_NNNNN.ckpt``: the complete state every ``checkpoint_every`` generations.
+
+``resume=True`` continues from the newest checkpoint in ``out_dir`` (the run's config, seed and
+behaviour policies must match, else a :class:`~evolution.checkpoint.CheckpointError` and nothing
+is touched); the result is bit-identical to an uninterrupted run. Without ``resume`` an
+``out_dir`` that already holds a run is refused, so results are never overwritten by accident.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+
+from behaviours import BehaviourPolicies
+from evolution.checkpoint import remove_stale_temporaries
+from evolution.config import EvolutionConfig, GeneticConfig
+from evolution.runner import (
+    METHODS,
+    EvolutionRunner,
+    RunConfig,
+    default_policies,
+    latest_checkpoint,
+    policy_identity,
+)
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+_EVOLUTION_FIELDS = {f.name for f in dataclasses.fields(EvolutionConfig)} - {"genetics"}
+_GENETIC_FIELDS = {f.name for f in dataclasses.fields(GeneticConfig)}
+_RUN_FIELDS = {"vision"}
+_WORLD_FIELDS = {"n_packs"}
+#: Keyword overrides :func:`run` and :func:`make_config` accept.
+OVERRIDES = tuple(sorted(_EVOLUTION_FIELDS | _GENETIC_FIELDS | _RUN_FIELDS | _WORLD_FIELDS))
+
+STATISTICS_FILE = "statistics.csv"
+EVENTS_FILE = "events.csv"
+RUN_FILE = "run.json"
+CHECKPOINT_DIR = "checkpoints"
+
+
+def make_config(
+    method: str = "ee", config: RunConfig | EvolutionConfig | None = None, **overrides: Any
+) -> RunConfig:
+    """A :class:`RunConfig`: ``config`` (default: the paper's) with ``method`` and overrides.
+
+    Args:
+        method: ``"ee"`` or ``"ce"``.
+        config: a base run or evolution config.
+        **overrides: fields of :class:`EvolutionConfig` (``population_size``, ``n_robots``,
+            ``lifetime_steps``, ...), of :class:`GeneticConfig` (``crossover_probability``,
+            ``mutation_probability``, ...), ``n_packs`` or ``vision``.
+
+    Raises:
+        ValueError: an unknown method or override name (the message lists the allowed ones),
+            or an invalid value (the config's own check names the field and its range).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    unknown = sorted(set(overrides) - set(OVERRIDES))
+    if unknown:
+        raise ValueError(
+            f"unknown config override(s) {', '.join(unknown)}; allowed: {', '.join(OVERRIDES)}"
+        )
+    if config is None:
+        base = RunConfig(method=method)
+    elif isinstance(config, EvolutionConfig):
+        base = RunConfig(method=method, evolution=config)
+    elif isinstance(config, RunConfig):
+        base = config.replace(method=method)
+    else:
+        raise ValueError(f"config must be a RunConfig or EvolutionConfig, got {type(config)!r}")
+    genetic = {k: v for k, v in overrides.items() if k in _GENETIC_FIELDS}
+    evolution = {k: v for k, v in overrides.items() if k in _EVOLUTION_FIELDS}
+    if genetic:
+        evolution["genetics"] = dataclasses.replace(base.evolution.genetics, **genetic)
+    changes: dict[str, Any] = {}
+    if evolution:
+        changes["evolution"] = dataclasses.replace(base.evolution, **evolution)
+    if "vision" in overrides:
+        changes["vision"] = overrides["vision"]
+    result = base.replace(**changes) if changes else base
+    if "n_packs" in overrides:
+        world = dataclasses.replace(result.world, n_packs=overrides["n_packs"])
+        result = result.replace(world=world)
+    return result
+
+
+def run(
+    method: str = "ee",
+    generations: int = 120,
+    seed: int = 0,
+    *,
+    config: RunConfig | EvolutionConfig | None = None,
+    out_dir: str | os.PathLike[str] | None = None,
+    policies: BehaviourPolicies | None = None,
+    resume: bool = False,
+    checkpoint_every: int = 1,
+    keep_checkpoints: int = 3,
+    max_steps: int | None = None,
+    progress: bool = False,
+    **overrides: Any,
+) -> pd.DataFrame:
+    """Run EE or CE for ``generations`` generations and return the statistics table.
+
+    Args:
+        method: ``"ee"`` (embodied evolution) or ``"ce"`` (centralised GA).
+        generations: generations to complete (the paper: 120).
+        seed: the run's seed; the same seed, config and policies give identical results.
+        config: base configuration (default: the paper's, Tables 1 and 2).
+        out_dir: directory for ``statistics.csv``, ``events.csv``, ``run.json`` and
+            checkpoints; None keeps everything in memory (no checkpoints).
+        policies: basic behaviours (default: the shipped trained values; pass
+            ``BehaviourPolicies.reactive()`` for the hand-written baseline).
+        resume: continue from the newest checkpoint in ``out_dir`` (from scratch if it has
+            none).
+        checkpoint_every: generations between checkpoints (with ``out_dir``).
+        keep_checkpoints: newest checkpoints to keep (0: all).
+        max_steps: stop after this many world control steps even if unfinished.
+        progress: show a progress bar.
+        **overrides: config fields, see :func:`make_config`.
+
+    Returns:
+        One row per completed generation (see :meth:`EvolutionRunner.statistics`).
+
+    Raises:
+        ValueError: bad arguments or overrides (population not divisible by robots,
+            probabilities outside [0, 1], ...), or an ``out_dir`` holding another run without
+            ``resume``.
+        CheckpointError: ``resume`` found a corrupt or incompatible checkpoint (nothing is
+            modified).
+        FileNotFoundError: no ``policies`` given and the trained values are not installed.
+    """
+    run_config = make_config(method, config, **overrides)
+    if isinstance(generations, bool) or not isinstance(generations, int) or generations < 0:
+        raise ValueError(f"generations must be an integer in [0, ∞), got {generations!r}")
+    policies = policies if policies is not None else default_policies()
+    if out_dir is None:
+        if resume:
+            raise ValueError("resume=True needs the out_dir of the run to continue")
+        runner = EvolutionRunner(run_config, seed, policies)
+        return runner.run(generations, max_steps=max_steps, progress=progress)
+
+    out = Path(out_dir)
+    checkpoints = out / CHECKPOINT_DIR
+    newest = latest_checkpoint(checkpoints)
+    if resume and newest is not None:
+        remove_stale_temporaries(checkpoints)
+        runner = EvolutionRunner.from_checkpoint(newest, policies, expect=(run_config, seed))
+    else:
+        if not resume and _holds_a_run(out):
+            raise ValueError(
+                f"out_dir {out} already holds a run ({RUN_FILE} or checkpoints); pass "
+                "resume=True to continue it, or choose an empty directory"
+            )
+        runner = EvolutionRunner(run_config, seed, policies)
+    out.mkdir(parents=True, exist_ok=True)
+    _write_json(out / RUN_FILE, _run_record(runner, generations))
+
+    def write_results(r: EvolutionRunner) -> None:
+        _write_atomic(out / STATISTICS_FILE, lambda p: r.statistics().to_csv(p, index=False))
+
+    table = runner.run(
+        generations,
+        checkpoint_dir=checkpoints,
+        checkpoint_every=checkpoint_every,
+        keep_checkpoints=keep_checkpoints,
+        max_steps=max_steps,
+        progress=progress,
+        on_generation=write_results,
+    )
+    _write_atomic(out / STATISTICS_FILE, lambda p: table.to_csv(p, index=False))
+    _write_atomic(out / EVENTS_FILE, runner.events.write_csv)
+    _write_json(out / RUN_FILE, _run_record(runner, generations))
+    return table
+
+
+def _holds_a_run(out: Path) -> bool:
+    return (out / RUN_FILE).exists() or latest_checkpoint(out / CHECKPOINT_DIR) is not None
+
+
+def _run_record(runner: EvolutionRunner, generations: int) -> dict[str, Any]:
+    return {
+        "config": dataclasses.asdict(runner.config),
+        "seed": runner.seed,
+        "policies": policy_identity(runner.policies),
+        "target_generations": generations,
+        "versions": {"mujoco": mujoco.__version__, "numpy": np.__version__},
+        "summary": runner.summary(),
+    }
+
+
+def _write_atomic(path: Path, write: Any) -> None:
+    """Write via ``write(temp_path)`` then rename, so a reader never sees a partial file."""
+    fd, temp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(temp)
+        os.replace(temp, path)
+    except BaseException:
+        Path(temp).unlink(missing_ok=True)
+        raise
+
+
+def _write_json(path: Path, record: dict[str, Any]) -> None:
+    def write(temp: str) -> None:
+        with open(temp, "w") as handle:
+            json.dump(record, handle, indent=2, sort_keys=True, default=repr)
+
+    _write_atomic(path, write)

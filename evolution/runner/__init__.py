@@ -1,0 +1,35 @@
+"""The evolution runner: EE and CE wired to the physics world (issue 6).
+
+:class:`EvolutionRunner` steps a :class:`~cyber_rodent.survival.SurvivalWorld` with every
+robot's active virtual agent in control, feeds the events to the time-sharing scheduler, records
+the paper's statistics and an event log, and writes atomic, bit-identically resumable
+checkpoints. :func:`evolution.api.run` wraps it in one call.
+"""
+
+from evolution.runner.config import METHODS, RunConfig
+from evolution.runner.events import EventKind, EventLog
+from evolution.runner.loop import (
+    EvolutionRunner,
+    checkpoint_kind,
+    default_policies,
+    latest_checkpoint,
+    list_checkpoints,
+    policy_identity,
+    run_fingerprint,
+)
+from evolution.runner.perception import Perception
+
+__all__ = [
+    "METHODS",
+    "EventKind",
+    "EventLog",
+    "EvolutionRunner",
+    "Perception",
+    "RunConfig",
+    "checkpoint_kind",
+    "default_policies",
+    "latest_checkpoint",
+    "list_checkpoints",
+    "policy_identity",
+    "run_fingerprint",
+]

@@ -1,0 +1,110 @@
+"""The configuration of one evolution run: method, evolution rules, world, survival and vision.
+
+The energy numbers of the paper (initial 100, maximum 200, maximum recharge 40 steps) appear in
+two configs: :class:`evolution.config.EvolutionConfig` (newborn agents, the controller's input
+normalisation) and :class:`cyber_rodent.survival.SurvivalConfig` (the world's mechanics). A run
+must use one set of numbers, so :class:`RunConfig` derives the survival config from the
+evolution config when none is given and otherwise insists that the two agree; likewise the
+world's robot count is the evolution config's ``n_robots``. A user changes a number in one
+place, and a contradictory combination is a clear ``ValueError`` instead of a silently
+inconsistent run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from cyber_rodent.survival import SurvivalConfig
+from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig
+from cyber_rodent.world import WorldConfig
+from evolution.config import EvolutionConfig
+
+#: The two evolution methods: embodied evolution and the centralised GA baseline.
+METHODS = ("ee", "ce")
+
+#: Fields that EvolutionConfig and SurvivalConfig share; they must be equal in a run.
+SHARED_ENERGY_FIELDS = ("initial_energy", "max_energy", "max_recharge_steps")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Everything that defines a run except its seed and its behaviour policies.
+
+    Attributes:
+        method: ``"ee"`` (embodied evolution, paper §2) or ``"ce"`` (centralised GA, §4.1).
+        evolution: the paper's evolution numbers (Tables 1 and 2).
+        survival: the world's energy, docking, recharge and mating rules; derived from
+            ``evolution`` if None (the paper's defaults for everything else).
+        world: the field (robots, packs, physics timestep); ``n_robots`` from ``evolution``
+            and 5 packs if None (the paper's simulation).
+        camera: the omnidirectional camera (default :class:`CameraConfig`).
+        vision: the vision provider, ``"geometric"`` (fast, the default for evolution runs) or
+            ``"rendered"`` (the real off-screen camera; much slower).
+
+    Raises:
+        ValueError: an unknown method or vision provider, a sub-config of the wrong type, or
+            sub-configs that disagree (energy numbers, robot count).
+    """
+
+    method: str = "ee"
+    evolution: EvolutionConfig = field(default_factory=EvolutionConfig)
+    survival: SurvivalConfig | None = None
+    world: WorldConfig | None = None
+    camera: CameraConfig | None = None
+    vision: str = "geometric"
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if not isinstance(self.evolution, EvolutionConfig):
+            raise ValueError(f"evolution must be an EvolutionConfig, got {type(self.evolution)!r}")
+        evo = self.evolution
+        if self.survival is None:
+            object.__setattr__(
+                self,
+                "survival",
+                SurvivalConfig(**{name: getattr(evo, name) for name in SHARED_ENERGY_FIELDS}),
+            )
+        elif not isinstance(self.survival, SurvivalConfig):
+            raise ValueError(f"survival must be a SurvivalConfig, got {type(self.survival)!r}")
+        for name in SHARED_ENERGY_FIELDS:
+            a, b = getattr(evo, name), getattr(self.survival, name)
+            if a != b:
+                raise ValueError(
+                    f"survival.{name} ({b!r}) must equal evolution.{name} ({a!r}): the world "
+                    "applies the energy rules the evolution assumes"
+                )
+        if self.world is None:
+            object.__setattr__(self, "world", WorldConfig(n_robots=evo.n_robots))
+        elif not isinstance(self.world, WorldConfig):
+            raise ValueError(f"world must be a WorldConfig, got {type(self.world)!r}")
+        if self.world.n_robots != evo.n_robots:
+            raise ValueError(
+                f"world.n_robots ({self.world.n_robots}) must equal evolution.n_robots "
+                f"({evo.n_robots}): every physical robot carries one subpopulation"
+            )
+        if self.camera is None:
+            object.__setattr__(self, "camera", CameraConfig())
+        elif not isinstance(self.camera, CameraConfig):
+            raise ValueError(f"camera must be a CameraConfig, got {type(self.camera)!r}")
+        if self.vision not in PROVIDER_NAMES:
+            raise ValueError(
+                f"vision must be one of {', '.join(PROVIDER_NAMES)}, got {self.vision!r}"
+            )
+
+    def replace(self, **changes: object) -> RunConfig:
+        """A copy with some fields changed, kept consistent.
+
+        When ``evolution`` changes and ``survival`` or ``world`` are not passed, their shared
+        fields (energy numbers, robot count) follow the new evolution config and every other
+        field is kept, so ``config.replace(evolution=...)`` never produces a contradiction.
+        """
+        evo = changes.get("evolution")
+        if isinstance(evo, EvolutionConfig):
+            if "survival" not in changes:
+                shared = {name: getattr(evo, name) for name in SHARED_ENERGY_FIELDS}
+                changes["survival"] = dataclasses.replace(self.survival, **shared)
+            if "world" not in changes:
+                changes["world"] = dataclasses.replace(self.world, n_robots=evo.n_robots)
+        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]

@@ -1,0 +1,117 @@
+"""The event log of an evolution run: dockings, recharge ends, matings, deaths and births.
+
+One row per event, in a compact int64 table (``step, robot, kind, slot, generation, value``), so a
+paper-scale run (tens of thousands of events) costs a few megabytes and converts to a pandas
+``DataFrame`` or a CSV file in one call. The runner appends only on the rare steps that have an
+event, so the log costs nothing on ordinary steps.
+
+Columns:
+
+- ``step``: the world control step (1-based: the step's number once it has been taken).
+- ``robot``: the physical robot.
+- ``kind``: an :class:`EventKind`.
+- ``slot``, ``generation``: the virtual agent concerned (its time-sharing slot and the
+  generation that slot was at). For world events that is the agent that was active during the
+  step; for a birth it is the new agent.
+- ``value``: kind-specific: the pack (``DOCK``), the :class:`cyber_rodent.survival.RechargeEnd`
+  reason (``RECHARGE_END``; :data:`RECHARGE_END_SWITCHED` = 0 when the runner ended the recharge
+  because the agent was switched out), the partner robot (``MATE``), the agent's age
+  (``DEATH``), the :class:`evolution.agent.Origin` of the new agent (``BIRTH``; ``OFFSPRING`` =
+  an EE offspring, ``SELECTED`` = a CE offspring).
+"""
+
+from __future__ import annotations
+
+import enum
+import os
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from evolution.agent import Origin
+
+if TYPE_CHECKING:  # pandas is imported only when a table is asked for
+    import pandas as pd
+
+COLUMNS = ("step", "robot", "kind", "slot", "generation", "value")
+#: ``value`` of a ``RECHARGE_END`` caused by an agent switch (``RechargeEnd.NONE`` in the world).
+RECHARGE_END_SWITCHED = 0
+
+
+class EventKind(enum.IntEnum):
+    """What happened (the ``kind`` column)."""
+
+    DOCK = 0  #: the robot captured a battery pack (value: the pack)
+    RECHARGE_END = 1  #: the robot's recharge ended (value: the RechargeEnd reason)
+    MATE = 2  #: a successful IR exchange (value: the partner robot)
+    DEATH = 3  #: the active agent's energy reached 0 (value: its age)
+    BIRTH = 4  #: a new agent took over a slot (value: its Origin)
+
+
+class EventLog:
+    """A growable int64 table of events (see the module docstring for the columns).
+
+    Args:
+        capacity: initial number of rows; the table doubles when full.
+    """
+
+    def __init__(self, capacity: int = 1024) -> None:
+        self._rows = np.zeros((max(int(capacity), 1), len(COLUMNS)), dtype=np.int64)
+        self._n = 0
+
+    def __len__(self) -> int:
+        return self._n
+
+    def append(
+        self, step: int, robot: int, kind: int, slot: int, generation: int, value: int
+    ) -> None:
+        """Add one event."""
+        if self._n == len(self._rows):
+            self._grow()
+        self._rows[self._n] = (step, robot, kind, slot, generation, value)
+        self._n += 1
+
+    def _grow(self) -> None:
+        bigger = np.zeros((2 * len(self._rows), len(COLUMNS)), dtype=np.int64)
+        bigger[: self._n] = self._rows[: self._n]
+        self._rows = bigger
+
+    @property
+    def array(self) -> np.ndarray:
+        """(n_events, 6) read-only view of the rows, in the order they happened."""
+        view = self._rows[: self._n]
+        view.flags.writeable = False
+        return view
+
+    def counts(self) -> dict[str, int]:
+        """Number of events of each kind, by lower-case kind name."""
+        kinds = np.bincount(self._rows[: self._n, 2], minlength=len(EventKind))
+        return {kind.name.lower(): int(kinds[kind]) for kind in EventKind}
+
+    def offspring(self) -> int:
+        """Births of offspring: EE offspring made at a full lifetime, or CE selected children."""
+        rows = self._rows[: self._n]
+        births = rows[rows[:, 2] == EventKind.BIRTH]
+        return int(np.isin(births[:, 5], (Origin.OFFSPRING, Origin.SELECTED)).sum())
+
+    def to_frame(self) -> pd.DataFrame:
+        """The log as a ``DataFrame`` with a ``kind`` column of names (``"dock"``, ...)."""
+        import pandas as pd
+
+        frame = pd.DataFrame(self._rows[: self._n].copy(), columns=list(COLUMNS))
+        names = np.array([k.name.lower() for k in EventKind])
+        frame["kind"] = pd.Categorical(names[frame["kind"].to_numpy()], categories=list(names))
+        return frame
+
+    def write_csv(self, path: str | os.PathLike[str]) -> None:
+        """Write the log as CSV (kinds as names)."""
+        self.to_frame().to_csv(path, index=False)
+
+    def __getstate__(self) -> dict[str, np.ndarray]:
+        return {"rows": self._rows[: self._n].copy()}
+
+    def __setstate__(self, state: dict[str, np.ndarray]) -> None:
+        rows = np.asarray(state["rows"], dtype=np.int64)
+        self._n = len(rows)
+        self._rows = np.zeros((max(2 * self._n, 1024), len(COLUMNS)), dtype=np.int64)
+        self._rows[: self._n] = rows
