@@ -26,13 +26,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from cyber_rodent.vision.types import DEFAULT_MAX_DISTANCE
+from cyber_rodent.vision.types import DEFAULT_MAX_DISTANCE, N_CLASSES
 
 #: The largest image dimension we accept (pixels per view horizontally, or rows). The render
 #: buffer must hold every robot's strip; OpenGL renderbuffers of Mesa llvmpipe stop at 16384.
 MAX_IMAGE_SIDE = 4096
 #: Largest number of pixels of all robots' strips together (one render buffer).
-MAX_BUFFER_PIXELS = 64 * 1024 * 1024
+MAX_BUFFER_PIXELS = 32 * 1024 * 1024
 
 
 @dataclass(frozen=True)
@@ -114,8 +114,12 @@ class CameraConfig:
         elevation_max_deg: highest elevation seen at every bearing (≥ 0: the horizon is in view).
         max_range: m, targets farther than this (horizontal distance) are not reported.
             Default: the field's diagonal, i.e. the camera's resolution is the real limit.
-        min_blob_area: pixels; smaller colour blobs are ignored (the geometric provider
-            applies the same threshold to a target's expected visible pixel area).
+        min_blob_area: pixels, per class (LED, FACE, BATTERY); smaller colour blobs are
+            ignored, and the geometric provider applies the same threshold to a target's
+            expected visible area. Nothing but an LED is green, so one pixel is an LED; red and
+            blue blobs of one or two pixels are mostly fragments of a face or pack glimpsed
+            through a gap (under a chassis, beside a wheel), whose edges give no distance,
+            while a whole pack anywhere in the field covers at least ~5 pixels by default.
         led, face, battery: HSV thresholds of the three colour classes.
         noise: optional measurement noise (off by default).
         near_clip: m, OpenGL near plane of the views (must be inside the robot's own body).
@@ -127,7 +131,7 @@ class CameraConfig:
     elevation_min_deg: float = -45.0
     elevation_max_deg: float = 3.0
     max_range: float = DEFAULT_MAX_DISTANCE
-    min_blob_area: int = 1
+    min_blob_area: tuple[int, int, int] = (1, 3, 3)
     led: ColourThreshold = GREEN_LED
     face: ColourThreshold = RED_FACE
     battery: ColourThreshold = BLUE_BATTERY
@@ -159,13 +163,17 @@ class CameraConfig:
             )
         if not (_is_real(self.max_range) and 0.0 < self.max_range <= 100.0):
             raise ValueError(f"max_range must be in (0, 100] m, got {self.max_range!r}")
-        if (
-            not isinstance(self.min_blob_area, int)
-            or isinstance(self.min_blob_area, bool)
-            or not 1 <= self.min_blob_area <= 10_000
+        area = self.min_blob_area
+        if not (
+            isinstance(area, tuple)
+            and len(area) == N_CLASSES
+            and all(
+                isinstance(a, int) and not isinstance(a, bool) and 1 <= a <= 10_000 for a in area
+            )
         ):
             raise ValueError(
-                f"min_blob_area must be an integer in [1, 10000] pixels, got {self.min_blob_area!r}"
+                "min_blob_area must be a tuple of 3 integers in [1, 10000] pixels (LED, FACE, "
+                f"BATTERY), got {area!r}"
             )
         if not (_is_real(self.near_clip) and 0.001 <= self.near_clip <= 0.05):
             raise ValueError(f"near_clip must be in [0.001, 0.05] m, got {self.near_clip!r}")

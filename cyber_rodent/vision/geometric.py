@@ -14,7 +14,7 @@ measures how well they agree):
   body does not (it is hidden from its own camera, as in the rendered image);
 * **resolution**: a target is detected only if its expected visible area in the image (its
   projected size in pixels of the configured resolution, times the visible share of its
-  samples) reaches ``min_blob_area``, which gives the camera's real range limit;
+  samples) reaches the class's ``min_blob_area``, which gives the camera's real range limit;
 * a face plate is seen only from the front; a robot never sees its own LED or face;
 * a target whose image touches a nearer visible target of the same colour merges into that
   one's blob (colour segmentation cannot separate them) and is not reported separately.
@@ -112,8 +112,11 @@ class GeometricVision:
         shape_of = [shapes[c] for c in self.target_cls]
         self._plate = np.array([s.plate for s in shape_of])
         self._half_width = np.array([s.half_width for s in shape_of])
+        #: (T,) m, half width of each target (cylinder radius, half the plate's width).
+        self.half_width = self._half_width
         self._half_height = np.array([0.5 * s.height for s in shape_of])
         self._rim = np.array([s.rim_offset for s in shape_of])
+        self._half_depth = np.array([s.half_depth for s in shape_of])
         # Flattened occlusion samples: which target, lateral and vertical offset (m).
         s_target, s_lat, s_dz = [], [], []
         for t, shape in enumerate(shape_of):
@@ -138,6 +141,7 @@ class GeometricVision:
         self._ray_geom = np.zeros(n_samples, dtype=np.int32)
         self._ray_dist = np.zeros(n_samples)
         self._cutoff = float(self.config.max_range) + 1.0
+        self._min_area = np.asarray(self.config.min_blob_area, dtype=float)[self.target_cls]
         self._tan_el_min = math.tan(math.radians(self.config.elevation_min_deg))
         self._tan_el_max = math.tan(math.radians(self.config.elevation_max_deg))
 
@@ -185,11 +189,12 @@ class GeometricVision:
         local = diff @ rot  # local_j = sum_i R_ij diff_i
         bearing = np.arctan2(local[..., 1], local[..., 0])
         distance = np.hypot(local[..., 0], local[..., 1])
+        normal_local = gmat[:, :, 0] @ rot  # (n, T, 3) each target's x axis, camera frame
         width_px, height_px, half_angle = self._projected_size(
-            local, lateral @ rot, bearing, distance
+            local, lateral @ rot, normal_local, bearing, distance
         )
         full_area = width_px * height_px
-        candidate = (full_area >= self.config.min_blob_area) & (distance <= self.config.max_range)
+        candidate = (full_area >= self._min_area) & (distance <= self.config.max_range)
         candidate &= ~self._own
         candidate[:, :n] &= self.world.led_on[None, :]  # a dark LED is not a green target
         # Plates (faces) show only their front: normal (the body's x axis) towards the camera.
@@ -225,7 +230,7 @@ class GeometricVision:
             hit[i, idx] = self._ray_geom[:k] == self._s_geom[idx]
         visible_share = (hit @ self._sample_to_target) * self._inv_samples
         area = full_area * visible_share
-        seen = candidate & (area >= self.config.min_blob_area)
+        seen = candidate & (area >= self._min_area)
         seen &= ~self._merged_blobs(seen, visible_share, local, bearing, distance, half_angle)
         return TargetMeasurements(
             visible=seen,
@@ -259,6 +264,7 @@ class GeometricVision:
         self,
         local: np.ndarray,
         lat_local: np.ndarray,
+        normal_local: np.ndarray,
         bearing: np.ndarray,
         distance: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -266,8 +272,9 @@ class GeometricVision:
         angular width (rad).
 
         Width: the two lateral edges projected onto the image plane of the view that sees the
-        target's axis. Height: from the far top rim to the near bottom rim (cylinders seen from
-        above), or from top to bottom edge (plates), clipped to the strip.
+        target's axis, plus, for plates, the two faces of the plate (its edge). Height: from
+        the far top rim to the near bottom rim (cylinders seen from above), or from top to
+        bottom edge (plates), clipped to the strip.
         """
         proj = self.projection
         view, offset = proj.view_coordinates(bearing)
@@ -278,6 +285,14 @@ class GeometricVision:
         u_left = np.tan(np.clip(_wrap(b_left - axis), -_EDGE_CLIP, _EDGE_CLIP))
         u_right = np.tan(np.clip(_wrap(b_right - axis), -_EDGE_CLIP, _EDGE_CLIP))
         du = np.abs(u_left - u_right)
+        # A plate's thickness adds its edge's width (what shows of a face seen edge-on).
+        thick = normal_local * self._half_depth[None, :, None]
+        b_front = np.arctan2(local[..., 1] + thick[..., 1], local[..., 0] + thick[..., 0])
+        b_back = np.arctan2(local[..., 1] - thick[..., 1], local[..., 0] - thick[..., 0])
+        du += np.abs(
+            np.tan(np.clip(_wrap(b_front - axis), -_EDGE_CLIP, _EDGE_CLIP))
+            - np.tan(np.clip(_wrap(b_back - axis), -_EDGE_CLIP, _EDGE_CLIP))
+        )
         cos_off = np.cos(offset)
         depth_far = np.maximum((distance + self._rim) * cos_off, 1e-9)
         depth_near = np.maximum((distance - self._rim) * cos_off, 1e-9)

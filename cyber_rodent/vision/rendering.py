@@ -38,7 +38,7 @@ import os
 import mujoco
 import numpy as np
 
-from cyber_rodent.vision.config import CameraConfig
+from cyber_rodent.vision.config import MAX_BUFFER_PIXELS, CameraConfig
 from cyber_rodent.vision.projection import OmniProjection
 from cyber_rodent.world import World
 
@@ -81,11 +81,15 @@ class OmniRenderer:
         self.n_robots = n
         self.width = config.strip_width
         self.buffer_height = n * config.height
-        if self.buffer_height > MAX_BUFFER_SIDE or self.width > MAX_BUFFER_SIDE:
+        if (
+            self.buffer_height > MAX_BUFFER_SIDE
+            or self.width > MAX_BUFFER_SIDE
+            or self.buffer_height * self.width > MAX_BUFFER_PIXELS
+        ):
             raise ValueError(
                 f"height={config.height} px × {n} robots = {self.buffer_height} rows (and "
-                f"{self.width} columns) exceed the {MAX_BUFFER_SIDE}-pixel off-screen buffer; "
-                "lower the camera resolution"
+                f"{self.width} columns) exceed the off-screen buffer (at most {MAX_BUFFER_SIDE} "
+                f"pixels a side, {MAX_BUFFER_PIXELS} in all); lower the camera resolution"
             )
         m = world.model
         # The off-screen buffer's size is read from the model when the context is made.

@@ -35,6 +35,8 @@ class TargetShape:
         plate: True for a flat plate, False for a vertical cylinder.
         half_width: m, cylinder radius or half the plate's width.
         z_bottom, z_top: m, height of the coloured part above the floor.
+        half_depth: m, half the plate's thickness (0 for cylinders): a face seen at a
+            grazing angle shows its edge too.
         rim_offset: m, how much nearer (bottom) / farther (top) than the target's axis the
             silhouette's bottom and top edges lie (the radius for cylinders, 0 for plates).
     """
@@ -44,6 +46,7 @@ class TargetShape:
     half_width: float
     z_bottom: float
     z_top: float
+    half_depth: float = 0.0
 
     @property
     def rim_offset(self) -> float:
@@ -106,10 +109,15 @@ def target_geometry(world: World) -> TargetGeometry:
     face_geom = int(world.face_geom[0])
     if m.geom_type[face_geom] != mujoco.mjtGeom.mjGEOM_BOX:
         raise ValueError("vision expects the face geom to be a box")
-    _, half_w, half_h = (float(s) for s in m.geom_size[face_geom])
+    half_d, half_w, half_h = (float(s) for s in m.geom_size[face_geom])
     zc = _geom_height_above_floor(m, face_geom)
     face = TargetShape(
-        cls=FACE, plate=True, half_width=half_w, z_bottom=zc - half_h, z_top=zc + half_h
+        cls=FACE,
+        plate=True,
+        half_width=half_w,
+        z_bottom=zc - half_h,
+        z_top=zc + half_h,
+        half_depth=half_d,
     )
     led = cylinder(LED, int(world.led_geom[0]))
     if len(world.pack_geom):
