@@ -13,6 +13,7 @@ from the observer's camera axis to the target's vertical axis (see
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -82,10 +83,12 @@ def make_provider(
     )
 
 
-def save_omni_png(world: World, robot: int, out_path, config: CameraConfig | None = None):
+def save_omni_png(
+    world: World, robot: int, out_path: str | Path, config: CameraConfig | None = None
+) -> Path:
     """Render robot ``robot``'s omni image and save it with its segmentation overlay as a PNG.
 
-    See :func:`cyber_rodent.vision.snapshot.save_omni_png`.
+    See :func:`cyber_rodent.vision.snapshot.save_omni_png` (imported lazily: it needs OpenGL).
     """
     from cyber_rodent.vision.snapshot import save_omni_png as _save
 

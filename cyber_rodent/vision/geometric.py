@@ -145,6 +145,15 @@ class GeometricVision:
         self._tan_el_min = math.tan(math.radians(self.config.elevation_min_deg))
         self._tan_el_max = math.tan(math.radians(self.config.elevation_max_deg))
 
+    def close(self) -> None:
+        """Nothing to release (symmetry with the rendered provider)."""
+
+    def __enter__(self) -> GeometricVision:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
     # ------------------------------------------------------------------------------------
     def observe(self) -> VisionFrame:
         """What every robot sees in the world's current state."""

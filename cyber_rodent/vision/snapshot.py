@@ -86,15 +86,21 @@ def compose_omni_panels(
         col = int(np.argmin(np.abs(np.angle(np.exp(1j * (proj.column_bearing - bearing))))))
         return ((col + shift) % config.strip_width) * scale_x + scale_x // 2
 
-    for blob in frame.blobs[robot]:
-        x = column_of(blob.bearing)
+    # Blob labels, left to right, on staggered lines so that neighbours do not overlap.
+    marks = sorted(((column_of(b.bearing), b) for b in frame.blobs[robot]), key=lambda m: m[0])
+    line_end = [-1] * 6
+    for x, blob in marks:
         rgb = _CLASS_RGB[blob.cls]
         cv2.line(bottom, (x, 0), (x, 10), rgb, 2)
         label = f"{CLASS_NAMES[blob.cls]} {blob.distance:.2f}m {int(blob.area)}px"
+        (w_text, _), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
+        left = min(x + 3, width - w_text - 2)
+        line = next((k for k, end in enumerate(line_end) if end < left), len(line_end) - 1)
+        line_end[line] = left + w_text + 4
         cv2.putText(
             bottom,
             label,
-            (min(x + 3, width - 150), 22 + 14 * blob.cls),
+            (left, 24 + 15 * line),
             cv2.FONT_HERSHEY_SIMPLEX,
             0.4,
             rgb,
