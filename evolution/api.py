@@ -160,8 +160,8 @@ def run(
     if out_dir is None:
         if resume:
             raise ValueError("resume=True needs the out_dir of the run to continue")
-        runner = EvolutionRunner(run_config, seed, policies)
-        return runner.run(generations, max_steps=max_steps, progress=progress)
+        with EvolutionRunner(run_config, seed, policies) as runner:
+            return runner.run(generations, max_steps=max_steps, progress=progress)
 
     out = Path(out_dir)
     checkpoints = out / CHECKPOINT_DIR
@@ -176,24 +176,25 @@ def run(
                 "resume=True to continue it, or choose an empty directory"
             )
         runner = EvolutionRunner(run_config, seed, policies)
-    out.mkdir(parents=True, exist_ok=True)
-    _write_json(out / RUN_FILE, _run_record(runner, generations))
+    with runner:
+        out.mkdir(parents=True, exist_ok=True)
+        _write_json(out / RUN_FILE, _run_record(runner, generations))
 
-    def write_results(r: EvolutionRunner) -> None:
-        _write_atomic(out / STATISTICS_FILE, lambda p: r.statistics().to_csv(p, index=False))
+        def write_results(r: EvolutionRunner) -> None:
+            _write_atomic(out / STATISTICS_FILE, lambda p: r.statistics().to_csv(p, index=False))
 
-    table = runner.run(
-        generations,
-        checkpoint_dir=checkpoints,
-        checkpoint_every=checkpoint_every,
-        keep_checkpoints=keep_checkpoints,
-        max_steps=max_steps,
-        progress=progress,
-        on_generation=write_results,
-    )
-    _write_atomic(out / STATISTICS_FILE, lambda p: table.to_csv(p, index=False))
-    _write_atomic(out / EVENTS_FILE, runner.events.write_csv)
-    _write_json(out / RUN_FILE, _run_record(runner, generations))
+        table = runner.run(
+            generations,
+            checkpoint_dir=checkpoints,
+            checkpoint_every=checkpoint_every,
+            keep_checkpoints=keep_checkpoints,
+            max_steps=max_steps,
+            progress=progress,
+            on_generation=write_results,
+        )
+        _write_atomic(out / STATISTICS_FILE, lambda p: table.to_csv(p, index=False))
+        _write_atomic(out / EVENTS_FILE, runner.events.write_csv)
+        _write_json(out / RUN_FILE, _run_record(runner, generations))
     return table
 
 

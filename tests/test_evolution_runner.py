@@ -309,6 +309,24 @@ def test_idle_ce_robot_is_parked_until_the_population_has_finished() -> None:
     assert stats.loc[0, "closed_at_step"] == 120
 
 
+def test_rendered_camera_drives_the_runner_and_resumes_identically(tmp_path) -> None:
+    # The real off-screen camera instead of the geometric fast path: same wiring, and the
+    # checkpoint of a rendering runner resumes bit-identically too.
+    cfg = small_config("ee", lifetime_steps=80).replace(vision="rendered")
+    with EvolutionRunner(cfg, 0, REACTIVE) as runner:
+        for _ in range(10):
+            runner.step()
+        assert runner.perception.visible.any()
+        runner.save_checkpoint(tmp_path / "mid.ckpt")
+        for _ in range(10):
+            runner.step()
+        with EvolutionRunner.from_checkpoint(tmp_path / "mid.ckpt", REACTIVE) as resumed:
+            for _ in range(10):
+                resumed.step()
+            identical(runner, resumed)
+            np.testing.assert_array_equal(runner.perception.bearing, resumed.perception.bearing)
+
+
 # --- integration ------------------------------------------------------------------------------
 EE_SEED = 2
 CE_SEED = 0

@@ -405,6 +405,18 @@ class EvolutionRunner:
                 bar.close()
         return self.statistics()
 
+    def close(self) -> None:
+        """Release the vision provider's resources (the rendered camera's OpenGL context)."""
+        close = getattr(self.vision, "close", None)
+        if callable(close):
+            close()
+
+    def __enter__(self) -> EvolutionRunner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     # --- results ---------------------------------------------------------------------------
     def statistics(self) -> pd.DataFrame:
         """Per completed generation, the paper's statistics (:class:`GenerationStats` columns)

@@ -95,15 +95,17 @@ class Perception:
     def _prepare_geometric(self, vision: GeometricVision) -> None:
         n = self.bearing.shape[0]
         n_targets = len(vision.target_cls)
-        self._masked = np.full((n, n_targets), np.inf)
-        # Classes without any target (a world without packs) keep their "not seen" defaults.
-        self._class_cols = [
-            (c, _as_slice(cols))
-            for c in range(N_CLASSES)
-            if len(cols := np.flatnonzero(vision.target_cls == c))
-        ]
-        self._rows = np.arange(n)
-        self._nearest = np.zeros(n, dtype=np.intp)
+        # Distances and bearings of all targets plus one padding column that is never seen
+        # (distance inf, bearing 0): each class's targets are gathered into one (n, 3, width)
+        # block, classes with fewer targets (or none: a world without packs) padded with it.
+        self._masked = np.full((n, n_targets + 1), np.inf)
+        self._bearings = np.zeros((n, n_targets + 1))
+        per_class = [np.flatnonzero(vision.target_cls == c) for c in range(N_CLASSES)]
+        width = max(1, max(len(cols) for cols in per_class))
+        self._class_cols = np.full((N_CLASSES, width), n_targets, dtype=np.intp)
+        for c, cols in enumerate(per_class):
+            self._class_cols[c, : len(cols)] = cols
+        self._nearest = np.zeros((n, N_CLASSES, 1), dtype=np.intp)
 
     # ------------------------------------------------------------------------------------
     def update(self) -> BehaviourInputs:
@@ -124,20 +126,20 @@ class Perception:
         vision: GeometricVision = self.vision  # type: ignore[assignment]
         t = vision.measure_targets()
         apply_noise(vision.config.noise, vision.rng, t.bearing, t.distance, t.visible)
-        masked = self._masked
+        masked, bearings = self._masked[:, :-1], self._bearings[:, :-1]
         masked.fill(np.inf)
         np.copyto(masked, t.distance, where=t.visible)
-        rows, nearest = self._rows, self._nearest
-        for c, cols in self._class_cols:
-            block = masked[:, cols]
-            np.argmin(block, axis=1, out=nearest)
-            d = block[rows, nearest]
-            seen = self.visible[:, c]
-            np.less(d, np.inf, out=seen)
-            np.copyto(self.distance[:, c], d)
-            b = t.bearing[:, cols][rows, nearest]
-            self.bearing[:, c] = 0.0
-            np.copyto(self.bearing[:, c], b, where=seen)
+        np.copyto(bearings, t.bearing)
+        cols, nearest = self._class_cols, self._nearest
+        block = self._masked[:, cols]  # (n, 3, width)
+        np.argmin(block, axis=2, out=nearest[:, :, 0])
+        np.copyto(self.distance, np.take_along_axis(block, nearest, axis=2)[:, :, 0])
+        np.less(self.distance, np.inf, out=self.visible)
+        # Not seen: bearing 0 (the frame's convention); the padding column's bearing is 0.
+        np.copyto(
+            self.bearing, np.take_along_axis(self._bearings[:, cols], nearest, axis=2)[:, :, 0]
+        )
+        self.bearing[~self.visible] = 0.0
 
     def _proximity(self) -> None:
         ranges = self.world.range_readings(out=self.ranges)

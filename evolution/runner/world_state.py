@@ -19,7 +19,8 @@ What a control step reads, and so what a checkpoint must restore:
   and random generators. These are captured generically (every array, scalar and
   ``numpy.random.Generator`` attribute), so a new state field added to those classes is
   checkpointed without a change here; arrays are restored *in place* because other objects
-  hold views of them.
+  hold views of them (an attribute that is not an array yet, such as a provider's "latest
+  image" before its first call, is simply assigned).
 """
 
 from __future__ import annotations
@@ -70,9 +71,12 @@ def restore_attributes(obj: object, saved: dict[str, tuple[str, Any]]) -> None:
             raise ValueError(f"{type(obj).__name__} has no attribute {name!r} to restore")
         if kind == "array":
             target = current[name]
-            if not isinstance(target, np.ndarray) or target.shape != value.shape:
+            if not isinstance(target, np.ndarray):  # e.g. a "latest output" not made yet
+                setattr(obj, name, value.copy())
+            elif target.shape != value.shape or target.dtype != value.dtype:
                 raise ValueError(f"{type(obj).__name__}.{name} has changed shape or type")
-            np.copyto(target, value)
+            else:
+                np.copyto(target, value)
         elif kind == "rng":
             current[name].bit_generator.state = copy.deepcopy(value)
         elif kind == "events":

@@ -1,0 +1,216 @@
+"""Throughput of the evolution runner, as a ratio to the raw physics it steps.
+
+For EE and CE on the paper's default world (4 robots x 25 agents, 5 packs, geometric vision),
+this prints control steps per second of the whole loop (sensing, controller, behaviours,
+survival mechanics, scheduler) and the cost of the *same physics* stepped raw: every block of
+runner steps is replayed with bare ``mj_step`` calls (same model, same substeps, from the same
+start state, with the wheel commands and docking welds each call of the runner integrated
+from; the replay is checked to end in the runner's exact state), interleaved with the runner's
+blocks so machine load affects both alike. Their ratio is the runner's overhead; the target is
+at most 1.3x. The time the loop spends inside its own ``mj_step`` calls is printed too.
+
+It also projects the wall time of one 120-generation run on one core (120 generations x 25
+agents x 400 steps = 1.2 M control steps if no agent dies; deaths lengthen EE runs, which need
+every slot to complete each generation), and profiles the loop with cProfile: where time goes by
+component, then the top functions.
+
+Run: ``python -m benchmarks.evolution_throughput [--steps 4000] [--policies auto]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import json
+import pstats
+import time
+
+import mujoco
+import numpy as np
+
+from behaviours import BehaviourPolicies
+from evolution.runner import EvolutionRunner, RunConfig
+
+#: (label, function name patterns) of the components reported by the profile; cumulative time
+#: of the first matching function, "other" is the rest.
+COMPONENTS = (
+    ("physics (mj_step)", ("mj_step",)),
+    ("vision (measure_targets)", ("measure_targets",)),
+    ("behaviour policies (commands)", ("commands",)),
+    ("controller (fill/select/recharge)", ("fill_inputs", "select", "continue_recharge")),
+    ("scheduler (on_step)", ("on_step",)),
+)
+
+
+def choose_policies(name: str) -> tuple[BehaviourPolicies, str]:
+    """The behaviours to benchmark with, and a label saying which they are."""
+    if name in ("auto", "trained"):
+        try:
+            return BehaviourPolicies.load_default(), "trained (shipped values)"
+        except FileNotFoundError:
+            if name == "trained":
+                raise
+    return BehaviourPolicies.reactive(), "reactive (hand-written; trained values not installed)"
+
+
+class _PhysicsRecorder:
+    """Stands in for ``mujoco.mj_step`` during a block of runner steps: records what each call
+    integrates from (wheel commands, docking welds on/off and their poses, which live in the
+    model) for the replay, and times the call itself."""
+
+    def __init__(self, real_step, block: int, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        self.real_step = real_step
+        self.ctrl = np.zeros((block, m.nu))
+        self.eq_active = np.zeros((block, m.neq), dtype=d.eq_active.dtype)
+        self.eq_data = np.zeros((block, *m.eq_data.shape))
+        self.calls = 0
+        self.seconds = 0.0
+
+    def __call__(self, m: mujoco.MjModel, d: mujoco.MjData, nstep: int = 1) -> None:
+        i = self.calls
+        self.ctrl[i] = d.ctrl
+        self.eq_active[i] = d.eq_active
+        self.eq_data[i] = m.eq_data
+        start = time.perf_counter()
+        self.real_step(m, d, nstep=nstep)
+        self.seconds += time.perf_counter() - start
+        self.calls += 1
+
+
+def measure(runner: EvolutionRunner, steps: int, block: int) -> dict[str, float]:
+    """Time ``steps`` runner steps, the physics inside them, and the same physics replayed raw.
+
+    Returns:
+        ``runner_s`` (whole loop), ``inside_s`` (its ``mj_step`` calls), ``raw_s`` (the same
+        calls replayed alone from the same states), ``substeps``.
+    """
+    world = runner.world
+    m, d = world.model, world.data
+    substeps = runner.survival.n_substeps
+    scratch = mujoco.MjData(m)
+    real_step = mujoco.mj_step
+    totals = {"runner_s": 0.0, "inside_s": 0.0, "raw_s": 0.0, "substeps": substeps}
+    done = 0
+    try:
+        while done < steps:
+            k = min(block, steps - done)
+            recorder = _PhysicsRecorder(real_step, k, m, d)
+            mujoco.mj_copyData(scratch, m, d)
+            eq_now = m.eq_data.copy()
+            mujoco.mj_step = recorder
+            start = time.perf_counter()
+            for _ in range(k):
+                runner.step()
+            totals["runner_s"] += time.perf_counter() - start
+            mujoco.mj_step = real_step
+            if recorder.calls != k:
+                raise RuntimeError(f"expected {k} mj_step calls, recorded {recorder.calls}")
+            totals["inside_s"] += recorder.seconds
+            eq_after = m.eq_data.copy()
+            m.eq_data[:] = eq_now
+            start = time.perf_counter()
+            for i in range(k):
+                scratch.ctrl[:] = recorder.ctrl[i]
+                scratch.eq_active[:] = recorder.eq_active[i]
+                m.eq_data[:] = recorder.eq_data[i]
+                real_step(m, scratch, nstep=substeps)
+            totals["raw_s"] += time.perf_counter() - start
+            m.eq_data[:] = eq_after  # the model is the runner's: leave it as the runner left it
+            if not np.array_equal(scratch.qpos, d.qpos):
+                raise RuntimeError("the replay diverged from the runner's physics")
+            done += k
+    finally:
+        mujoco.mj_step = real_step
+    return totals
+
+
+def profile(runner: EvolutionRunner, steps: int, top: int) -> tuple[list[tuple[str, float]], str]:
+    """cProfile ``steps`` runner steps: component shares (of total time) and the top table."""
+    profiler = cProfile.Profile()
+    profiler.enable()
+    for _ in range(steps):
+        runner.step()
+    profiler.disable()
+    stats = pstats.Stats(profiler)
+    total = stats.total_tt  # type: ignore[attr-defined]
+    raw = stats.stats  # type: ignore[attr-defined]
+    shares = []
+    accounted = 0.0
+    for label, names in COMPONENTS:
+        seconds = 0.0
+        for (_, _, func), (_, _, _, cumtime, _) in raw.items():
+            if any(func == n or func.endswith(f"{n}>") or func == f"<built-in method {n}>"
+                   or func.split(".")[-1] == n for n in names):  # fmt: skip
+                seconds += cumtime
+        shares.append((label, seconds / total))
+        accounted += seconds
+    shares.append(("other (perception mapping, survival mechanics, loop)", 1 - accounted / total))
+    buffer = io.StringIO()
+    pstats.Stats(profiler, stream=buffer).sort_stats("tottime").print_stats(top)
+    return shares, buffer.getvalue()
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=4000, help="timed control steps per method")
+    parser.add_argument("--block", type=int, default=200, help="steps per interleaved block")
+    parser.add_argument("--warmup", type=int, default=300, help="untimed steps first")
+    parser.add_argument("--profile-steps", type=int, default=2000)
+    parser.add_argument("--top", type=int, default=15, help="profile rows to print")
+    parser.add_argument("--policies", choices=("auto", "trained", "reactive"), default="auto")
+    parser.add_argument("--methods", default="ee,ce")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", help="also write the numbers to this JSON file")
+    args = parser.parse_args(argv)
+
+    policies, label = choose_policies(args.policies)
+    print(f"behaviours: {label}")
+    results: dict = {"policies": label, "methods": {}}
+    for method in args.methods.split(","):
+        config = RunConfig(method=method)
+        runner = EvolutionRunner(config, args.seed, policies)
+        for _ in range(args.warmup):
+            runner.step()
+        times = measure(runner, args.steps, args.block)
+        runner_s, raw_s, substeps = times["runner_s"], times["raw_s"], times["substeps"]
+        rate = args.steps / runner_s
+        ratio = runner_s / raw_s
+        evo = config.evolution
+        paper_steps = 120 * evo.subpopulation_size * evo.lifetime_steps
+        hours = paper_steps / rate / 3600
+        print(f"\n== {method.upper()}: {evo.n_robots} robots x {evo.subpopulation_size} agents, "
+              f"{config.world.n_packs} packs, {config.vision} vision, {substeps} substeps of "
+              f"{runner.world.model.opt.timestep} s per control step")  # fmt: skip
+        print(f"runner:       {rate:8.0f} control steps/s ({1e3 * runner_s / args.steps:.3f} ms)")
+        print(f"raw mj_step:  {args.steps / raw_s:8.0f} control steps/s "
+              f"({1e3 * raw_s / args.steps:.3f} ms)")  # fmt: skip
+        print(f"ratio runner / raw physics: {ratio:.2f}x (target <= 1.3x)")
+        inside = times["inside_s"]
+        print(f"  (mj_step inside the loop: {1e3 * inside / args.steps:.3f} ms per control "
+              f"step, {100 * inside / runner_s:.0f} % of the loop; ratio to it "
+              f"{runner_s / inside:.2f}x)")  # fmt: skip
+        print(f"projected 120-generation run ({paper_steps:,} control steps, no deaths): "
+              f"{hours:.2f} h on one core")  # fmt: skip
+        shares, table = profile(runner, args.profile_steps, args.top)
+        print(f"profile of {args.profile_steps} steps (cProfile inflates Python-side costs):")
+        for name, share in shares:
+            print(f"  {name:55s} {100 * share:5.1f} %")
+        print(table)
+        results["methods"][method] = {
+            "steps_per_s": rate,
+            "raw_physics_steps_per_s": args.steps / raw_s,
+            "ratio_to_raw_physics": ratio,
+            "ratio_to_mj_step_inside_loop": runner_s / times["inside_s"],
+            "projected_hours_120_generations": hours,
+            "profile_shares": dict(shares),
+            "summary": runner.summary(),
+        }
+    if args.json:
+        with open(args.json, "w") as handle:
+            json.dump(results, handle, indent=2, default=str)
+    return results
+
+
+if __name__ == "__main__":
+    main()
