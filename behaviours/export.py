@@ -165,3 +165,57 @@ def load_exported_policy(path: str | os.PathLike) -> tuple[nn.Module, dict]:
     except Exception as err:  # torch raises many types for a damaged archive
         raise ValueError(f"{path}: not a readable exported policy ({err})") from err
     return program.module(), description
+
+
+def export_behaviour_policies(
+    out_dir: str | os.PathLike, values_dir: str | os.PathLike | None = None
+) -> dict[str, Path]:
+    """Export the greedy policy of every behaviour's trained values as ``<name>.pt2``.
+
+    Args:
+        out_dir: destination directory (created if needed).
+        values_dir: where ``{mate,forage,search}.npz`` live; default the shipped values.
+
+    Returns:
+        ``{behaviour name: written path}``.
+
+    Raises:
+        FileNotFoundError, ActionValuesError: a values file is missing, damaged or incompatible.
+    """
+    from behaviours.definitions import load_values
+    from behaviours.inputs import BEHAVIOUR_NAMES
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    return {
+        name: export_greedy_policy(load_values(name, values_dir), out / f"{name}.pt2")
+        for name in BEHAVIOUR_NAMES
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m behaviours.export --out DIR``: export the three shipped behaviours."""
+    import argparse
+    import sys
+
+    parser = argparse.ArgumentParser(
+        prog="python -m behaviours.export",
+        description="Export the greedy Mate, Forage and Search policies as torch.export .pt2 "
+        "programs for robot controllers (input: float64 (batch, 2) in [0, 1]; output: wheel "
+        "command index).",
+    )
+    parser.add_argument("--out", required=True, help="output directory")
+    parser.add_argument("--values", default=None, help="values directory (default: shipped)")
+    args = parser.parse_args(argv)
+    try:
+        paths = export_behaviour_policies(args.out, args.values)
+    except (OSError, ValueError) as err:
+        print(f"behaviours.export: error: {err}", file=sys.stderr)
+        return 2
+    for name, path in paths.items():
+        print(f"{name}: wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -54,6 +54,34 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_train_behaviours(args: argparse.Namespace) -> int:
+    from behaviours.definitions import spec
+    from behaviours.inputs import BEHAVIOUR_NAMES
+    from behaviours.training import check_episodes, train
+
+    names = BEHAVIOUR_NAMES if args.behaviour is None else (args.behaviour,)
+    for name in names:
+        spec(name)  # unknown name: fail before any work
+    if args.episodes is not None:
+        check_episodes(args.episodes)
+    for name in names:
+        result = train(
+            name,
+            args.episodes,
+            seed=args.seed,
+            out_dir=args.out,
+            resume=args.resume,
+            progress=not args.no_progress,
+        )
+        rate = result.curve[-100:, 3].mean() if len(result.curve) else float("nan")
+        print(
+            f"{name}: {len(result.curve)} episodes ({result.episodes_run} this run, "
+            f"{result.wall_time:.1f} s), success over the last 100: {rate:.2f}; "
+            f"wrote {result.values_path}, {result.curve_csv}, {result.curve_png}"
+        )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="cyber-rodent",
@@ -84,6 +112,31 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --robot: save its omnidirectional image and segmentation",
     )
     snap.set_defaults(func=_cmd_snapshot)
+
+    train = sub.add_parser(
+        "train-behaviours",
+        help="learn Mate, Forage and Search with Sarsa(lambda) in the physics world",
+        description="Train the basic behaviours (Sarsa(lambda), tile coding, replacing traces) "
+        "and write their action values, learning curves (CSV + PNG) and a resumable checkpoint.",
+    )
+    train.add_argument(
+        "--behaviour",
+        default=None,
+        help="mate, forage or search (default: all three in turn)",
+    )
+    train.add_argument(
+        "--episodes",
+        type=_int_arg("--episodes"),
+        default=None,
+        help="training episodes per behaviour (default: what the shipped values used)",
+    )
+    train.add_argument("--seed", type=_int_arg("--seed"), default=0, help="training seed")
+    train.add_argument("--out", default="runs/behaviours", help="output directory")
+    train.add_argument(
+        "--resume", action="store_true", help="continue from the checkpoint in --out"
+    )
+    train.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    train.set_defaults(func=_cmd_train_behaviours)
     return parser
 
 

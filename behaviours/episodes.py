@@ -1,0 +1,330 @@
+"""Behaviour episodes in the physics world: where the behaviours are trained and measured.
+
+The paper trains the basic behaviours "in the same environmental setting used for the
+evolutionary experiments" (§3.4). An episode here runs on the evolution runner's own lean path:
+a :class:`~cyber_rodent.survival.SurvivalWorld` (MuJoCo physics, docking by teeth/electrode
+contact, IR mating) and the geometric vision provider, stepped one 0.1 s control step at a time
+with the discrete wheel commands. The dm-control tasks of :mod:`cyber_rodent.tasks` wrap the same
+objects with the same start conditions; we drive the world directly because training needs
+hundreds of thousands of steps and the episode loop is then the only overhead.
+
+Episode settings (the same as the dm-control tasks ``forage``, ``mate`` and ``search``):
+
+* **Forage**: 1 robot, 5 packs; the start placement is re-drawn until the robot sees a pack. It
+  ends with success when the robot docks (a capture, as the survival world defines it).
+* **Mate**: 2 robots, no packs, both LEDs on, both running Mate (both signal mating); the start
+  is re-drawn until each sees the other's LED or face. It ends with success at the first IR
+  exchange (ports facing within ±15° at ≤ 0.35 m, ``SurvivalConfig``).
+* **Search**: 4 robots (3 parked: wheels stopped, LEDs off), 5 packs; any start. It never ends
+  early. A robot that docks by accident is released at once (recharging is not Search's job).
+
+Energy plays no part in a behaviour episode, so robots start with enough energy never to die
+(``initial_energy = max_energy = 1e6``); everything else is the paper's survival world.
+
+Every episode draws its placement from its own generator, derived from ``(seed, episode)``
+(:func:`episode_rng`), so episode ``k`` of a run is the same placement whatever happened before:
+two policies evaluated with one seed see the same starts (a paired comparison), and a resumed
+training run continues exactly where it stopped.
+
+Rewards (per robot, per control step; ``γ`` is the learner's discount):
+
+* **Forage**: ``goal_reward`` (1) at the step the robot docks (terminal), minus ``step_cost``
+  (0.02) on every step, plus the potential-based shaping term ``γ Φ(s') − Φ(s)`` with
+  ``Φ(s) = −shaping · d(s)``, ``d`` the normalised distance of the nearest pack (1 when none is
+  seen), and ``Φ = 0`` at the terminal state. Shaping of this form leaves the optimal policy
+  unchanged (Ng, Harada & Russell 1999) but tells the learner from the first episode that
+  closing in on a pack is progress and losing sight of it is not; the step cost makes standing
+  still (or pushing into a wall) worse than any way to the goal. Example (γ = 0.98, scale 1): a
+  step from d = 0.30 to 0.28 without docking earns ``0.98·(−0.28) + 0.30 − 0.02 = 0.0056``;
+  docking from d = 0.05 earns ``0 + 0.05 − 0.02 + 1 = 1.03``.
+* **Mate**: the same for each of the two robots, with ``d`` the normalised distance of the
+  other robot's LED (or face) and the goal the IR exchange (terminal for both).
+* **Search**: forward progress minus a collision penalty, as the dm-control ``Search`` task:
+  ``clip(p / (reference_speed · dt), −1, 1) − collision_penalty · c``, ``p`` the displacement of
+  the robot's centre along its heading at the start of the step, ``c = 1`` when its body touches
+  a wall, a pack or a robot at the end of the step. Driving straight at ``reference_speed`` in
+  free space earns 1 per step; spinning earns 0; pushing into a wall earns at most −penalty.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from behaviours.inputs import (
+    FORAGE,
+    MATE,
+    SEARCH,
+    behaviour_index,
+    behaviour_inputs,
+    search_inputs,
+)
+from cyber_rodent.commands import COMMAND_SPEEDS, N_COMMANDS
+from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
+from cyber_rodent.vision import make_provider
+from cyber_rodent.vision.types import BATTERY, FACE, LED
+from cyber_rodent.world import World, WorldConfig
+
+#: Robots never die in a behaviour episode (energy is not part of any behaviour's task).
+_ENDLESS_ENERGY = 1e6
+#: Cell side (m) of the grid on which Search's covered area is counted.
+COVERAGE_CELL = 0.1
+_FIELD_HALF = 1.15
+
+
+def _check(name: str, ok: bool, allowed: str, value: object) -> None:
+    if not ok:
+        raise ValueError(f"{name}: must be {allowed}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class EpisodeConfig:
+    """Settings of behaviour episodes (training and evaluation).
+
+    Attributes:
+        max_steps: control steps after which an episode is cut (the issue's budget: 100).
+        goal_reward: reward of Forage's docking and Mate's IR exchange, ≥ 0.
+        step_cost: reward subtracted on every step of Forage and Mate, ≥ 0.
+        shaping: scale of the distance shaping of Forage and Mate (0 disables it), ≥ 0.
+        gamma: discount used in the shaping term; must equal the learner's ``gamma`` for the
+            shaping to be policy-invariant.
+        reference_speed: Search's forward speed (m/s) that earns the full progress reward.
+        collision_penalty: Search's reward subtracted per step in contact, ≥ 0.
+        max_start_draws: placements drawn for a start condition before giving up.
+    """
+
+    max_steps: int = 100
+    goal_reward: float = 1.0
+    step_cost: float = 0.02
+    shaping: float = 1.0
+    gamma: float = 0.98
+    reference_speed: float = 0.5
+    collision_penalty: float = 1.0
+    max_start_draws: int = 500
+
+    def __post_init__(self) -> None:
+        _check(
+            "max_steps",
+            isinstance(self.max_steps, int) and 1 <= self.max_steps <= 1_000_000,
+            "an integer in [1, 1000000]",
+            self.max_steps,
+        )
+        _check(
+            "goal_reward",
+            math.isfinite(self.goal_reward) and self.goal_reward >= 0,
+            ">= 0",
+            self.goal_reward,
+        )
+        _check(
+            "step_cost",
+            math.isfinite(self.step_cost) and self.step_cost >= 0,
+            ">= 0",
+            self.step_cost,
+        )
+        _check("shaping", math.isfinite(self.shaping) and self.shaping >= 0, ">= 0", self.shaping)
+        _check("gamma", 0.0 <= self.gamma <= 1.0, "in [0, 1]", self.gamma)
+        _check(
+            "reference_speed",
+            math.isfinite(self.reference_speed) and 0 < self.reference_speed <= 1.3,
+            "in (0, 1.3] m/s",
+            self.reference_speed,
+        )
+        _check(
+            "collision_penalty",
+            math.isfinite(self.collision_penalty) and self.collision_penalty >= 0,
+            ">= 0",
+            self.collision_penalty,
+        )
+        _check(
+            "max_start_draws",
+            isinstance(self.max_start_draws, int) and self.max_start_draws >= 1,
+            "an integer >= 1",
+            self.max_start_draws,
+        )
+
+
+def episode_rng(seed: int, episode: int) -> np.random.Generator:
+    """The placement generator of episode ``episode`` of a run with ``seed``."""
+    return np.random.default_rng(np.random.SeedSequence([seed, episode, 0x5EED]))
+
+
+def shaping_reward(gamma: float, scale: float, d_before: float, d_after: float) -> float:
+    """Potential-based shaping ``γ Φ(s') − Φ(s)`` with ``Φ = −scale · d``.
+
+    Example: γ = 0.98, scale 1, the pack's normalised distance goes from 0.30 to 0.28:
+    ``0.98 · (−0.28) − (−0.30) = 0.0256``.
+    """
+    return gamma * (-scale * d_after) + scale * d_before
+
+
+def search_reward(progress: float, collided: bool, reference_step: float, penalty: float) -> float:
+    """Search's step reward: ``clip(progress / reference_step, −1, 1) − penalty · collided``.
+
+    Args:
+        progress: m moved along the heading at the start of the step.
+        collided: the body touches an obstacle at the end of the step.
+        reference_step: ``reference_speed · control_dt``, m.
+        penalty: the collision penalty.
+    """
+    return min(1.0, max(-1.0, progress / reference_step)) - (penalty if collided else 0.0)
+
+
+@dataclass
+class StepResult:
+    """What one episode step returns.
+
+    Attributes:
+        states: (k, 2) the learners' next inputs in [0, 1].
+        rewards: (k,) reward of the step, per learner.
+        terminal: the episode reached its goal (a true terminal state).
+        collided: (k,) the learners' bodies touch an obstacle (for Search's statistics).
+    """
+
+    states: np.ndarray
+    rewards: np.ndarray
+    terminal: bool
+    collided: np.ndarray
+
+
+class BehaviourEpisode:
+    """Episodes of one behaviour in its physics world (see the module docstring).
+
+    Args:
+        behaviour: ``"mate"``, ``"forage"`` or ``"search"``.
+        config: episode settings.
+        timestep: physics timestep, s (default ``WorldConfig``'s).
+
+    Attributes:
+        n_learners: robots acting (2 for Mate, else 1).
+        steps: control steps of the current episode so far.
+    """
+
+    def __init__(
+        self, behaviour: str, config: EpisodeConfig | None = None, timestep: float | None = None
+    ) -> None:
+        self.behaviour = behaviour_index(behaviour)
+        self.name = behaviour
+        self.config = config or EpisodeConfig()
+        robots, packs = {MATE: (2, 0), FORAGE: (1, 5), SEARCH: (4, 5)}[self.behaviour]
+        world_cfg = WorldConfig(n_robots=robots, n_packs=packs)
+        if timestep is not None:
+            world_cfg = WorldConfig(n_robots=robots, n_packs=packs, timestep=timestep)
+        fixed = np.random.default_rng(0)  # construction only; every episode re-draws
+        self.world = World(world_cfg, fixed)
+        survival_cfg = SurvivalConfig(initial_energy=_ENDLESS_ENERGY, max_energy=_ENDLESS_ENERGY)
+        self.survival = SurvivalWorld(self.world, survival_cfg, fixed)
+        self.vision = make_provider("geometric", self.world) if self.behaviour != SEARCH else None
+        self.n_learners = 2 if self.behaviour == MATE else 1
+        self.dt = survival_cfg.control_dt
+        n = robots
+        self._wheels = np.zeros((n, 2))
+        self._led = np.zeros(n, dtype=bool)
+        self._mate = np.zeros(n, dtype=bool)
+        self._recharge = np.zeros(n, dtype=bool)
+        if self.behaviour == MATE:
+            self._led[:] = True
+            self._mate[:] = True
+        if self.behaviour == FORAGE:
+            self._recharge[:] = True  # a capture ends the episode anyway
+        self._collided = np.zeros(n, dtype=bool)
+        self._distance = np.zeros(self.n_learners)
+        self.steps = 0
+        self.positions: list[tuple[float, float]] = []
+
+    # --- episode ---------------------------------------------------------------------------
+    def reset(self, rng: np.random.Generator) -> np.ndarray:
+        """Start an episode from a placement drawn with ``rng``; return the (k, 2) inputs.
+
+        Raises:
+            RuntimeError: no placement satisfied the start condition.
+        """
+        for _ in range(self.config.max_start_draws):
+            self.survival.reset(rng)
+            self.world.set_led(self._led)
+            states = self._observe()
+            if self._start_ok():
+                break
+        else:
+            raise RuntimeError(
+                f"{self.name}: no start placement met the start condition in "
+                f"{self.config.max_start_draws} draws"
+            )
+        self.steps = 0
+        self._distance[:] = states[:, 1] if self.behaviour != SEARCH else 0.0
+        return states
+
+    def step(self, commands: np.ndarray) -> StepResult:
+        """Drive the learners with wheel commands (k,) for one control step."""
+        k = self.n_learners
+        self._wheels[:k] = COMMAND_SPEEDS[np.asarray(commands, dtype=np.int64)]
+        before = self.world.poses()[0] if self.behaviour == SEARCH else None
+        events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
+        self.steps += 1
+        states = self._observe()
+        self.survival.collisions(out=self._collided)
+        cfg = self.config
+        rewards = np.zeros(k)
+        terminal = False
+        if self.behaviour == FORAGE:
+            terminal = bool(events.docked[0])
+        elif self.behaviour == MATE:
+            terminal = bool(events.mate_partner[0] == 1)
+        if self.behaviour == SEARCH:
+            if self.survival.docked[0]:
+                self.survival.end_recharge(0, reflex=False)
+            x, y, _ = self.world.poses()[0]
+            progress = (x - before[0]) * math.cos(before[2]) + (y - before[1]) * math.sin(before[2])
+            rewards[0] = search_reward(
+                progress,
+                bool(self._collided[0]),
+                cfg.reference_speed * self.dt,
+                cfg.collision_penalty,
+            )
+        else:
+            d_after = np.zeros(k) if terminal else states[:, 1]
+            rewards[:] = cfg.gamma * (-cfg.shaping * d_after) + cfg.shaping * self._distance
+            rewards -= cfg.step_cost
+            if terminal:
+                rewards += cfg.goal_reward
+            self._distance[:] = states[:, 1]
+        return StepResult(states, rewards, terminal, self._collided[:k].copy())
+
+    def position(self) -> np.ndarray:
+        """(x, y) of robot 0's centre, m."""
+        return self.world.poses()[0, :2]
+
+    # --- internals -----------------------------------------------------------------------------
+    def _observe(self) -> np.ndarray:
+        k = self.n_learners
+        if self.behaviour == SEARCH:
+            ranges = self.world.range_readings()[:k]
+            return search_inputs(ranges, self.world.range_max[:k])
+        self._frame = self.vision.observe()
+        inputs = behaviour_inputs(self._frame, self.world.range_readings(), self.world.range_max)
+        return inputs.of(self.behaviour)[:k].copy()
+
+    def _start_ok(self) -> bool:
+        if self.behaviour == FORAGE:
+            return bool(self._frame.visible[0, BATTERY])
+        if self.behaviour == MATE:
+            seen = self._frame.visible[:2, LED] | self._frame.visible[:2, FACE]
+            return bool(seen.all())
+        return True
+
+
+def coverage_cells(positions: np.ndarray, cell: float = COVERAGE_CELL) -> int:
+    """Number of distinct ``cell`` × ``cell`` squares of the field visited by ``positions``.
+
+    Args:
+        positions: (steps, 2) x, y of the robot's centre, m.
+        cell: side of a square, m.
+    """
+    idx = np.floor((np.asarray(positions) + _FIELD_HALF) / cell).astype(np.int64)
+    return int(np.unique(idx[:, 0] * 10_000 + idx[:, 1]).size)
+
+
+def random_commands(rng: np.random.Generator, k: int) -> np.ndarray:
+    """Uniformly random wheel commands (the random baseline)."""
+    return rng.integers(N_COMMANDS, size=k)
