@@ -110,7 +110,7 @@ class CameraConfig:
         height: pixel rows of the omni strip. Pixels need not be square: the LED ring is wide
             and flat (4.4 cm × 1.4 cm), so vertical resolution buys detection range cheaper
             than horizontal resolution. The default 128 × 192 per view detects another
-            robot's LED in every trial out to 2.0 m (78-85 % at 2.25-2.5 m); 64 × 96 only to
+            robot's LED in every trial out to 2.0 m (70-90 % at 2.25-2.5 m); 64 × 96 only to
             1.0 m, 96 × 144 to 1.5 m, 128 × 256 to the 2.5 m tested. Rendering and segmenting
             all 4 robots costs ~18 ms per control step at the default, ~12 ms at 64 × 96, and
             ~20 ms at 128 × 256 on 2 llvmpipe cores: the per-tile cost dominates, not the
