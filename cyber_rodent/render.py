@@ -142,10 +142,18 @@ def check_writable_output(path: str | os.PathLike) -> Path:
     return out
 
 
-def _umask() -> int:
+def publish_file(temp: str | os.PathLike, out: str | os.PathLike) -> Path:
+    """Give a finished temporary file the usual permissions and rename it into place.
+
+    ``tempfile.mkstemp`` makes files readable by their owner only; outputs (images, videos)
+    should get the permissions of any new file under the user's umask. The rename is atomic
+    within one directory, so a reader never sees a half-written output.
+    """
     mask = os.umask(0)
     os.umask(mask)
-    return mask
+    os.chmod(temp, 0o666 & ~mask)
+    os.replace(temp, out)
+    return Path(out)
 
 
 def write_png(image: np.ndarray, path: str | os.PathLike) -> Path:
@@ -157,8 +165,7 @@ def write_png(image: np.ndarray, path: str | os.PathLike) -> Path:
     os.close(fd)
     try:
         iio.imwrite(tmp, image, extension=".png")
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
-        os.replace(tmp, out)
+        publish_file(tmp, out)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
