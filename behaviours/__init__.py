@@ -11,8 +11,10 @@ The evolution runner needs only this::
     inputs = behaviour_inputs(frame, world.range_readings(), world.range_max)
     commands = policies.commands(chosen_behaviour, inputs)  # (n,) indices into WHEEL_COMMANDS
 
-Training (:mod:`behaviours.training`) and the torch export (:mod:`behaviours.export`) are
-imported on demand; importing this package never imports torch.
+Training (:mod:`behaviours.training`, ``cyber-rodent train-behaviours``), evaluation in the
+physics world (:mod:`behaviours.evaluation`, ``benchmarks/behaviours.py``) and the torch export
+for robots (:mod:`behaviours.export`, ``python -m behaviours.export --out DIR``) are imported on
+demand; importing this package never imports torch.
 """
 
 from behaviours.definitions import SPECS, VALUES_VERSION, BehaviourSpec, load_values

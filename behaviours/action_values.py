@@ -125,10 +125,16 @@ class ActionValues:
         except TypeError as err:
             raise ValueError(f"metadata: must be JSON-serialisable ({err})") from err
 
-    def save(self, path: str | os.PathLike) -> Path:
+    def save(self, path: str | os.PathLike, compress: bool = False) -> Path:
         """Write the values atomically (temp file + rename) and return the path.
 
         The rename means a crash mid-write never leaves a half-written file under the real name.
+
+        Args:
+            path: destination ``.npz``.
+            compress: deflate the archive (``numpy.savez_compressed``); :meth:`load` reads both.
+                Trained tables are mostly zeros (unvisited tiles), so this shrinks shipped files
+                several-fold.
         """
         path = Path(path)
         if path.suffix != ".npz":
@@ -136,7 +142,7 @@ class ActionValues:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + ".tmp")
         with open(tmp, "wb") as fh:
-            np.savez(
+            (np.savez_compressed if compress else np.savez)(
                 fh,
                 weights=self.weights.astype("<f8"),
                 header=np.array(self._header),

