@@ -139,15 +139,6 @@ def search_inputs(ranges: np.ndarray, range_max: np.ndarray) -> np.ndarray:
     return p[:, :-3:-1].copy()
 
 
-def _target(frame: VisionFrame, cls: int, max_distance: float) -> np.ndarray:
-    visible = frame.visible[:, cls]
-    out = np.empty((visible.shape[0], 2))
-    out[:, 0] = np.where(visible, normalise_bearing(frame.bearing[:, cls]), 0.5)
-    d = np.where(visible, frame.distance[:, cls], max_distance)
-    out[:, 1] = np.clip(d / max_distance, 0.0, 1.0)
-    return out
-
-
 def behaviour_inputs(
     frame: VisionFrame,
     ranges: np.ndarray,
@@ -173,14 +164,19 @@ def behaviour_inputs(
         raise ValueError(
             f"ranges: expected one row per robot of the frame ({n}), got {np.shape(ranges)}"
         )
-    led = _target(frame, LED, max_distance)
-    face = _target(frame, FACE, max_distance)
-    led_seen = frame.visible[:, LED]
-    mate = np.where(led_seen[:, None], led, face)
+    visible = frame.visible
+    # (n, 3 classes, [bearing, distance]) for all classes at once; unseen: [0.5, 1].
+    target = np.empty((n, 3, 2))
+    np.copyto(target[:, :, 0], normalise_bearing(frame.bearing))
+    target[:, :, 0][~visible] = 0.5
+    np.divide(frame.distance, max_distance, out=target[:, :, 1])
+    np.clip(target[:, :, 1], 0.0, 1.0, out=target[:, :, 1])
+    target[:, :, 1][~visible] = 1.0
+    led_seen = visible[:, LED]
     return BehaviourInputs(
-        mate=mate,
-        forage=_target(frame, BATTERY, max_distance),
+        mate=np.where(led_seen[:, None], target[:, LED], target[:, FACE]),
+        forage=target[:, BATTERY].copy(),
         search=search_inputs(ranges, range_max),
-        mate_available=led_seen | frame.visible[:, FACE],
-        forage_available=frame.visible[:, BATTERY].copy(),
+        mate_available=led_seen | visible[:, FACE],
+        forage_available=visible[:, BATTERY].copy(),
     )

@@ -34,6 +34,47 @@ class CommandPolicy(Protocol):
         ...
 
 
+class _FusedGreedy:
+    """The three greedy policies evaluated for all robots in one pass (the hot path).
+
+    Equivalent, bit for bit, to calling each :class:`GreedyPolicy` on its robots: per robot it
+    computes the same tile coordinates with its behaviour's coder parameters, reads the same
+    precomputed hash lookup, gathers the same weight rows and sums them over the tilings in the
+    same order, then takes the same ``argmax``. Doing it as one batch saves the per-behaviour
+    fixed costs (three coder calls of ~10 µs each) in a loop run 1.2 million times per run.
+    """
+
+    def __init__(self, policies: tuple[GreedyPolicy, ...]) -> None:
+        coders = [p.coder for p in policies]
+        dims = {c.config.n_dims for c in coders}
+        tilings = {c.config.n_tilings for c in coders}
+        if len(dims) != 1 or len(tilings) != 1 or any(c._lookup is None for c in coders):
+            raise ValueError("coders differ in shape or hash on the fly: no fused path")
+        self.n_tilings = tilings.pop()
+        self.scale = np.stack([c.scale for c in coders])  # (B, dims)
+        self.offsets = np.stack([c.offsets for c in coders])  # (B, T, dims)
+        self.count = np.stack([c.coordinate_count for c in coders])[:, None, :]  # (B, 1, dims)
+        self.strides = np.stack([c._strides for c in coders])[:, None, :]  # (B, 1, dims)
+        lookup_base = np.cumsum([0] + [c._lookup.size for c in coders[:-1]])
+        # Per behaviour and tiling: where its lookup block starts in the concatenated lookup.
+        self.base = np.stack(
+            [c._tiling_base + lookup_base[i] for i, c in enumerate(coders)]
+        )  # (B, T)
+        table_base = np.cumsum([0] + [p._table.shape[0] for p in policies[:-1]])
+        # Lookup entries already shifted to the behaviour's rows of the stacked weight table.
+        self.lookup = np.concatenate([c._lookup + table_base[i] for i, c in enumerate(coders)])
+        self.table = np.concatenate([p._table for p in policies])  # (sum tables, n_actions)
+
+    def act(self, behaviour: np.ndarray, states: np.ndarray) -> np.ndarray:
+        if states.size and not (states.min() >= 0.0 and states.max() <= 1.0):
+            raise ValueError("states: every behaviour input must be in [0, 1] (no NaN)")
+        q = np.floor(states * self.scale[behaviour]).astype(np.int64)  # (n, dims)
+        coords = (q[:, None, :] + self.offsets[behaviour]) // self.n_tilings
+        coords %= self.count[behaviour]
+        flat = (coords * self.strides[behaviour]).sum(axis=-1) + self.base[behaviour]
+        return np.argmax(self.table[self.lookup[flat]].sum(axis=-2), axis=-1)
+
+
 class BehaviourPolicies:
     """The Mate, Forage and Search policies, evaluated for all robots at once.
 
@@ -53,6 +94,13 @@ class BehaviourPolicies:
     ) -> None:
         self.policies: tuple[CommandPolicy, ...] = (mate, forage, search)
         self.kind = kind
+        self._fused: _FusedGreedy | None = None
+        if all(isinstance(p, GreedyPolicy) for p in self.policies):
+            try:
+                self._fused = _FusedGreedy(self.policies)
+            except ValueError:
+                self._fused = None
+        self._rows = np.arange(0)
 
     @classmethod
     def load_default(cls) -> BehaviourPolicies:
@@ -102,6 +150,13 @@ class BehaviourPolicies:
             )
         if out is None:
             out = np.empty(n, dtype=np.int64)
+        if self._fused is not None:
+            if self._rows.size != n:
+                self._rows = np.arange(n)
+            # Each robot's own behaviour's input row: stack (3, n, 2), pick [behaviour, robot].
+            states = np.stack((inputs.mate, inputs.forage, inputs.search))[behaviour, self._rows]
+            out[:] = self._fused.act(behaviour, states)
+            return out
         for b in range(N_BEHAVIOURS):
             rows = np.flatnonzero(behaviour == b)
             if rows.size == n:
