@@ -105,7 +105,10 @@ class Perception:
         self._class_cols = np.full((N_CLASSES, width), n_targets, dtype=np.intp)
         for c, cols in enumerate(per_class):
             self._class_cols[c, : len(cols)] = cols
-        self._nearest = np.zeros((n, N_CLASSES, 1), dtype=np.intp)
+        self._nearest = np.zeros((n, N_CLASSES), dtype=np.intp)
+        self._column = np.zeros((n, N_CLASSES), dtype=np.intp)
+        self._row_index = np.arange(n)[:, None]
+        self._class_index = np.arange(N_CLASSES)[None, :]
 
     # ------------------------------------------------------------------------------------
     def update(self) -> BehaviourInputs:
@@ -129,17 +132,14 @@ class Perception:
         masked, bearings = self._masked[:, :-1], self._bearings[:, :-1]
         masked.fill(np.inf)
         np.copyto(masked, t.distance, where=t.visible)
-        np.copyto(bearings, t.bearing)
-        cols, nearest = self._class_cols, self._nearest
-        block = self._masked[:, cols]  # (n, 3, width)
-        np.argmin(block, axis=2, out=nearest[:, :, 0])
-        np.copyto(self.distance, np.take_along_axis(block, nearest, axis=2)[:, :, 0])
+        bearings.fill(0.0)  # not seen: bearing 0, the frame's convention
+        np.copyto(bearings, t.bearing, where=t.visible)
+        nearest, column = self._nearest, self._column
+        np.argmin(self._masked[:, self._class_cols], axis=2, out=nearest)  # within each class
+        np.copyto(column, self._class_cols[self._class_index, nearest])  # (n, 3) target columns
+        np.copyto(self.distance, self._masked[self._row_index, column])
+        np.copyto(self.bearing, self._bearings[self._row_index, column])
         np.less(self.distance, np.inf, out=self.visible)
-        # Not seen: bearing 0 (the frame's convention); the padding column's bearing is 0.
-        np.copyto(
-            self.bearing, np.take_along_axis(self._bearings[:, cols], nearest, axis=2)[:, :, 0]
-        )
-        self.bearing[~self.visible] = 0.0
 
     def _proximity(self) -> None:
         ranges = self.world.range_readings(out=self.ranges)
