@@ -124,3 +124,41 @@ def test_exported_shipped_policies_act_like_numpy(tmp_path):
         assert np.array_equal(module(torch.from_numpy(x)).numpy(), numpy_actions)
         assert len(set(numpy_actions.tolist())) >= 3  # a real comparison, not one constant
         assert description["values_sha256"] == load_values(name).checksum
+
+
+def test_learned_policies_work_in_the_dm_control_tasks(learned):
+    """The same behaviours in the dm-control ``forage`` and ``mate`` tasks (same world, driven
+    through dm_env): inputs built from the task observations, commands sent as wheel speeds."""
+    from cyber_rodent import tasks
+    from cyber_rodent.commands import COMMAND_SPEEDS
+    from cyber_rodent.vision.types import DEFAULT_MAX_DISTANCE, normalise_bearing
+
+    def inputs_from(target: np.ndarray) -> np.ndarray:
+        x = np.empty((len(target), 2))
+        x[:, 0] = np.where(target[:, 2] > 0, normalise_bearing(target[:, 0]), 0.5)
+        x[:, 1] = np.where(target[:, 2] > 0, np.minimum(target[:, 1] / DEFAULT_MAX_DISTANCE, 1), 1)
+        return x
+
+    for name, index, key, k in (("forage", 1, "nearest_battery", 1), ("mate", 0, "nearest_led", 2)):
+        env = tasks.load(name, seed=4)
+        successes = 0
+        for _ in range(5):
+            ts = env.reset()
+            while not ts.last():
+                commands = learned.policies[index].act(inputs_from(ts.observation[key]))
+                ts = env.step({"wheels": COMMAND_SPEEDS[commands], "led": np.ones(k)})
+                if ts.reward.max() >= 1.0:
+                    successes += 1
+                    break
+        assert successes >= 4, (name, successes)
+
+
+def test_commands_reject_out_of_range_inputs(learned):
+    from behaviours.inputs import BehaviourInputs
+
+    good = np.full((2, 2), 0.5)
+    bad = good.copy()
+    bad[1, 0] = 1.5
+    inputs = BehaviourInputs(good, bad, good, np.ones(2, bool), np.ones(2, bool))
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        learned.commands(np.array([0, 1]), inputs)
