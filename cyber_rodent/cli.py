@@ -86,6 +86,152 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_evolve(args: argparse.Namespace) -> int:
+    from evolution import experiment
+
+    overrides = experiment.load_config_file(args.config) if args.config else {}
+    overrides.update(experiment.parse_set(args.set))
+    out = args.out if args.out is not None else experiment.default_out_dir(args.method, args.seed)
+    try:
+        path, table = experiment.evolve(
+            args.method,
+            args.generations,
+            args.seed,
+            out,
+            overrides=overrides,
+            policies=args.policies,
+            resume=args.resume,
+            force=args.force,
+            checkpoint_every=args.checkpoint_every,
+            progress=not args.no_progress,
+            argv=sys.argv,
+        )
+    except KeyboardInterrupt:
+        print(
+            f"cyber-rodent: interrupted; continue with: cyber-rodent resume {out}", file=sys.stderr
+        )
+        return 130
+    _report_run(path, table)
+    if args.generations < 120:
+        print(
+            f"This was a short run ({args.generations} generations). The paper's Fig. 6 "
+            f"experiment (20 seeds x EE and CE x 120 generations):\n  {experiment.PAPER_COMMAND}"
+        )
+    return 0
+
+
+def _report_run(path, table) -> None:
+    if len(table):
+        last = table.iloc[-1]
+        print(
+            f"{len(table)} generations; last generation: {int(last['completed'])} agents "
+            f"completed the survival task, batteries {last['batteries_mean']:.1f}, "
+            f"matings {last['matings_mean']:.2f}"
+        )
+    print(f"run directory: {path}  (statistics.csv, events.csv, figures/, checkpoints/)")
+
+
+def _cmd_resume(args: argparse.Namespace) -> int:
+    from evolution import experiment
+
+    try:
+        path, table = experiment.resume_run(
+            args.dir, progress=not args.no_progress, generations=args.generations
+        )
+    except KeyboardInterrupt:
+        print(
+            f"cyber-rodent: interrupted; continue with: cyber-rodent resume {args.dir}",
+            file=sys.stderr,
+        )
+        return 130
+    _report_run(path, table)
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from evolution import experiment
+    from evolution.sweep import SweepSpec, check_ray_address, parse_seeds, sweep
+
+    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+    overrides = experiment.load_config_file(args.config) if args.config else {}
+    overrides.update(experiment.parse_set(args.set))
+    spec = SweepSpec(
+        methods, parse_seeds(args.seeds), args.generations, overrides, policies=args.policies
+    )
+    experiment.policies_by_name(args.policies)  # the shipped values are installed
+    if args.workers is not None and args.workers < 1:
+        raise CliError(f"--workers must be >= 1, got {args.workers}")
+    backend = "ray" if args.ray is not None else "local"
+    if backend == "ray":
+        check_ray_address(args.ray)  # before anything is written
+    out = experiment.prepare_sweep_dir(args.out, resume=args.resume, force=args.force)
+    try:
+        results = sweep(
+            spec,
+            out,
+            workers=args.workers,
+            backend=backend,
+            ray_address=args.ray or "local",
+            progress=not args.no_progress,
+        )
+    except KeyboardInterrupt:
+        print(
+            "cyber-rodent: interrupted; continue with the same command and --resume",
+            file=sys.stderr,
+        )
+        return 130
+    figures = experiment.plot_run_dir(out)
+    print(f"{len(results)} runs finished in {out}; figures: " + ", ".join(str(f) for f in figures))
+    return 0
+
+
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from evolution import experiment
+
+    for path in experiment.plot_run_dir(args.dir):
+        print(f"wrote {path}")
+    return 0
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    from evolution import experiment
+
+    if (args.dir is None) == (args.checkpoint is None):
+        raise CliError("give a run directory or --checkpoint FILE (one of them)")
+    out = experiment.render_run(
+        args.dir if args.dir is not None else args.checkpoint,
+        args.out,
+        frames=args.frames,
+        fps=args.fps,
+        steps_per_frame=args.steps_per_frame,
+        progress=not args.no_progress,
+    )
+    print(f"wrote {out}")
+    return 0
+
+
+def _add_run_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--config", default=None, help="TOML or JSON file of config overrides (the keys of --set)"
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        default=[],
+        help="override one config field, e.g. --set population_size=20 (repeatable)",
+    )
+    p.add_argument(
+        "--policies",
+        default="trained",
+        choices=("trained", "reactive"),
+        help="basic behaviours: the shipped trained values or the reactive baseline",
+    )
+    p.add_argument("--resume", action="store_true", help="continue the run(s) in --out")
+    p.add_argument("--force", action="store_true", help="replace the run(s) in --out")
+    p.add_argument("--no-progress", action="store_true", help="hide progress bars")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="cyber-rodent",
@@ -141,7 +287,116 @@ def build_parser() -> argparse.ArgumentParser:
     )
     train.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     train.set_defaults(func=_cmd_train_behaviours)
+
+    evolve = sub.add_parser(
+        "evolve",
+        help="run embodied evolution (EE) or the centralised GA (CE) in a run directory",
+        description="Run EE or CE on the physics world. Writes a run directory (config, "
+        "versions, statistics.csv, events.csv, checkpoints, figures). With no arguments: a "
+        "short EE run (5 generations) that finishes in minutes.",
+    )
+    evolve.add_argument("--method", default="ee", choices=("ee", "ce"))
+    evolve.add_argument(
+        "--generations",
+        type=_int_arg("--generations"),
+        default=5,
+        help="generations to complete (default 5; the paper: 120)",
+    )
+    evolve.add_argument("--seed", type=_int_arg("--seed"), default=0)
+    evolve.add_argument(
+        "--out", default=None, help="run directory (default: runs/<method>-seed<S>-<timestamp>)"
+    )
+    evolve.add_argument(
+        "--checkpoint-every",
+        type=_int_arg("--checkpoint-every"),
+        default=1,
+        help="generations between checkpoints",
+    )
+    _add_run_options(evolve)
+    evolve.set_defaults(func=_cmd_evolve)
+
+    resume = sub.add_parser(
+        "resume",
+        help="continue an interrupted run from its checkpoint",
+        description="Continue a run directory's run from its newest "
+        "checkpoint; the result is identical to an uninterrupted run.",
+    )
+    resume.add_argument("dir", help="the run directory")
+    resume.add_argument(
+        "--generations",
+        type=_int_arg("--generations"),
+        default=None,
+        help="new target (default: the run's own)",
+    )
+    resume.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    resume.set_defaults(func=_cmd_resume)
+
+    sweep = sub.add_parser(
+        "sweep",
+        help="many runs (methods x seeds) in parallel: local processes or a Ray cluster",
+        description="Run every method x seed, one process per run (or one Ray task per run "
+        "with --ray), each in <out>/<method>-seed<NNN>; failed runs are retried from their "
+        "last checkpoint. Results are identical whichever backend ran them.",
+    )
+    sweep.add_argument("--methods", default="ee,ce", help="comma list of ee, ce")
+    sweep.add_argument("--seeds", default="0-19", help="seeds: N, A-B or a comma list")
+    sweep.add_argument("--generations", type=_int_arg("--generations"), default=120)
+    sweep.add_argument("--out", required=True, help="sweep directory")
+    sweep.add_argument(
+        "--workers",
+        type=_int_arg("--workers"),
+        default=None,
+        help="concurrent runs (default: CPU count)",
+    )
+    sweep.add_argument(
+        "--ray",
+        default=None,
+        metavar="ADDRESS",
+        help="run on Ray: auto, HOST:PORT, ray://HOST:PORT, or local",
+    )
+    _add_run_options(sweep)
+    sweep.set_defaults(func=_cmd_sweep)
+
+    plot = sub.add_parser(
+        "plot",
+        help="draw Fig. 6 from a run or sweep directory",
+        description="Draw the figures (PNG + PDF) of a run directory or of "
+        "a sweep directory into <dir>/figures.",
+    )
+    plot.add_argument("dir")
+    plot.set_defaults(func=_cmd_plot)
+
+    render = sub.add_parser(
+        "render",
+        help="render an MP4 video continuing a run",
+        description="Render an MP4 (top-down field + omni views + "
+        "overlays) continuing a run from its newest checkpoint (or a "
+        "given checkpoint file). The run directory is not modified.",
+    )
+    render.add_argument("dir", nargs="?", default=None, help="a run directory")
+    render.add_argument("--checkpoint", default=None, help="a checkpoint file instead")
+    render.add_argument("--out", required=True, help="output .mp4 file")
+    render.add_argument(
+        "--frames",
+        type=_int_arg("--frames"),
+        default=300,
+        help="frames (one control step each by default; 300 = 30 s)",
+    )
+    render.add_argument("--fps", type=_int_arg("--fps"), default=10)
+    render.add_argument("--steps-per-frame", type=_int_arg("--steps-per-frame"), default=1)
+    render.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    render.set_defaults(func=_cmd_render)
     return parser
+
+
+def _user_errors() -> tuple[type[Exception], ...]:
+    """Errors of the evolution side that are the user's to fix (one line, exit 2)."""
+    if "evolution" not in sys.modules:
+        return ()
+    from evolution.checkpoint import CheckpointError
+    from evolution.sweep import SweepFailed
+
+    return (CheckpointError, SweepFailed)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -151,7 +406,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     try:
         return args.func(args)
-    except (CliError, ValueError, AssetNotFoundError) as err:
+    except (CliError, ValueError, AssetNotFoundError, *_user_errors()) as err:
         print(f"cyber-rodent: error: {err}", file=sys.stderr)
         return EXIT_USAGE
     except OSError as err:

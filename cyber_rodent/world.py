@@ -31,6 +31,9 @@ LED_OFF_RGBA = np.array([0.05, 0.15, 0.05, 1.0])
 _PLACEMENT_MARGIN = 0.02  # m, extra gap between placed bodies and to the walls
 _MAX_PACKING_DENSITY = 0.35  # share of the usable field area that placed discs may cover
 _PLACEMENT_ATTEMPTS = 2000
+#: Extra clearance between a pack and the walls (m): a robot (18 cm wide) can always pass
+#: between them, so no robot gets wedged in a pack-wall gap it cannot turn in.
+PACK_WALL_CLEARANCE = 0.2
 
 
 @dataclass(frozen=True)
@@ -249,7 +252,8 @@ class World:
                 np.full(k, C.PACK_RADIUS + _PLACEMENT_MARGIN),
             ]
         )
-        centres = place_discs(radii, C.FIELD_SIZE / 2, rng)
+        wall_margin = np.concatenate([np.zeros(n), np.full(k, PACK_WALL_CLEARANCE)])
+        centres = place_discs(radii, C.FIELD_SIZE / 2, rng, wall_margin)
         yaw = rng.uniform(-math.pi, math.pi, size=n)
         for i in range(n):
             self.set_robot_pose(i, centres[i, 0], centres[i, 1], yaw[i])
@@ -338,8 +342,15 @@ class World:
         return World(dataclasses.replace(self.config, **changes))
 
 
-def place_discs(radii: np.ndarray, half_size: float, rng: np.random.Generator) -> np.ndarray:
+def place_discs(
+    radii: np.ndarray,
+    half_size: float,
+    rng: np.random.Generator,
+    wall_margin: np.ndarray | None = None,
+) -> np.ndarray:
     """Centres for discs of ``radii`` inside [-half_size, half_size]², with no overlaps.
+
+    ``wall_margin`` (per disc, default 0) keeps a disc that much further from the walls.
 
     Large discs are placed first (rejection sampling each), which keeps the draw order, and so
     the result, a pure function of the generator's state.
@@ -349,10 +360,11 @@ def place_discs(radii: np.ndarray, half_size: float, rng: np.random.Generator) -
     """
     order = np.argsort(-radii, kind="stable")
     centres = np.zeros((len(radii), 2))
+    margin = np.zeros(len(radii)) if wall_margin is None else np.asarray(wall_margin)
     placed: list[int] = []
     for idx in order:
         r = radii[idx]
-        lim = half_size - r
+        lim = half_size - r - margin[idx]
         if lim <= 0:
             raise ValueError(f"a disc of radius {r:.3f} m does not fit in the field")
         for _ in range(_PLACEMENT_ATTEMPTS):

@@ -117,6 +117,8 @@ def test_placement_is_seeded_and_non_overlapping() -> None:
         for j in range(i + 1, len(pts)):
             assert np.hypot(*(pts[i] - pts[j])) >= radii[i] + radii[j]
     assert np.all(np.abs(pts) <= C.FIELD_SIZE / 2 - C.PACK_RADIUS)
+    # Packs keep a robot's width from the walls, so nobody gets wedged between pack and wall.
+    assert np.all(np.abs(a.pack_positions()) <= C.FIELD_SIZE / 2 - C.PACK_RADIUS - 0.2)
 
 
 def test_reset_redraws_placement_without_recompiling() -> None:

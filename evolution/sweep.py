@@ -1,0 +1,418 @@
+"""Many runs (methods × seeds) in parallel: local processes by default, or a Ray cluster.
+
+Each run is independent and its result depends only on its config and seed, so a sweep gives
+identical tables whichever backend or how many workers ran it. Every run writes its own run
+directory ``<out>/<method>-seed<NNN>`` through :func:`evolution.api.run`, checkpointing every
+generation; a run whose worker fails or is killed is submitted again with ``resume=True`` and
+continues from its last checkpoint, so a retry costs at most one generation and changes nothing
+in the result.
+
+Backends:
+
+- ``local`` (default): one process per run, ``workers`` at a time (``spawn`` start method, so
+  MuJoCo and OpenGL state never crosses a ``fork``). A killed worker breaks a
+  ``ProcessPoolExecutor``; the pool is rebuilt and the unfinished runs resumed.
+- ``ray``: each run is a Ray task (``num_cpus=1``) on an existing cluster
+  (``ray_address="auto"`` or ``"host:port"``) or on a fresh local one (``"local"``). Ray retries
+  a task whose worker died (``max_retries``). For retries to resume rather than restart, the
+  output directory must be on a filesystem the workers share; without one a retried run starts
+  again from scratch, with the same result.
+
+Progress: an aggregate bar over all runs' generations, with ETA and the latest mean batteries
+and matings, read from the runs' ``statistics.csv`` files as they are rewritten.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+import multiprocessing
+import os
+import re
+import socket
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+METHODS = ("ee", "ce")
+BACKENDS = ("local", "ray")
+POLICIES = ("trained", "reactive")
+#: Environment for worker processes: one BLAS / llvmpipe thread each, since runs already fill
+#: the cores one process per run.
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "LP_NUM_THREADS": "1"}
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """What a sweep runs.
+
+    Attributes:
+        methods: subset of ``("ee", "ce")``.
+        seeds: the seeds, each run once per method.
+        generations: generations per run.
+        overrides: config overrides passed to every run (see :func:`evolution.api.make_config`).
+        policies: basic behaviours: ``"trained"`` (the shipped values) or ``"reactive"`` (the
+            hand-written baseline).
+    """
+
+    methods: tuple[str, ...]
+    seeds: tuple[int, ...]
+    generations: int
+    overrides: dict[str, Any] = field(default_factory=dict)
+    policies: str = "trained"
+
+    def __post_init__(self) -> None:
+        if not self.methods or any(m not in METHODS for m in self.methods):
+            raise ValueError(
+                f"methods must be a non-empty subset of {METHODS}, got {self.methods!r}"
+            )
+        if len(set(self.methods)) != len(self.methods):
+            raise ValueError(f"methods must not repeat, got {self.methods!r}")
+        if not self.seeds or len(set(self.seeds)) != len(self.seeds):
+            raise ValueError(f"seeds must be a non-empty list without repeats, got {self.seeds!r}")
+        if any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in self.seeds):
+            raise ValueError(f"seeds must be integers >= 0, got {self.seeds!r}")
+        g = self.generations
+        if isinstance(g, bool) or not isinstance(g, int) or g < 1:
+            raise ValueError(f"generations must be an integer >= 1, got {g!r}")
+        if self.policies not in POLICIES:
+            raise ValueError(f"policies must be one of {POLICIES}, got {self.policies!r}")
+
+    @property
+    def runs(self) -> list[tuple[str, int]]:
+        """(method, seed) pairs in a fixed order."""
+        return [(m, s) for m in self.methods for s in self.seeds]
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """Parse ``"0-19"``, ``"3"`` or ``"0,2,5-7"`` into seeds.
+
+    Raises:
+        ValueError: for anything else (the message shows the accepted forms).
+    """
+    seeds: list[int] = []
+    for part in str(text).split(","):
+        part = part.strip()
+        m = re.fullmatch(r"(\d+)(?:-(\d+))?", part)
+        if not m:
+            raise ValueError(f"bad seed range {text!r}: use N, A-B or a comma list like 0,2,5-7")
+        lo = int(m.group(1))
+        hi = int(m.group(2)) if m.group(2) is not None else lo
+        if hi < lo:
+            raise ValueError(f"bad seed range {part!r} in {text!r}: the end is below the start")
+        seeds.extend(range(lo, hi + 1))
+    if len(set(seeds)) != len(seeds):
+        raise ValueError(f"bad seed range {text!r}: a seed appears twice")
+    return tuple(seeds)
+
+
+def run_dir(out_dir: str | os.PathLike[str], method: str, seed: int) -> Path:
+    """The run directory of one sweep member."""
+    return Path(out_dir) / f"{method}-seed{seed:03d}"
+
+
+def run_one(
+    method: str,
+    seed: int,
+    generations: int,
+    out: str,
+    overrides: dict[str, Any],
+    policies: str = "trained",
+) -> pd.DataFrame:
+    """Run (or resume) one sweep member in its run directory; the worker entry point."""
+    from behaviours import BehaviourPolicies
+    from evolution.api import run
+
+    chosen = BehaviourPolicies.reactive() if policies == "reactive" else None
+    return run(method, generations, seed, out_dir=out, resume=True, policies=chosen, **overrides)
+
+
+def check_ray_address(address: str, timeout: float = 3.0) -> None:
+    """Fail fast, with a clear message, if a ``host:port`` Ray address does not answer.
+
+    ``auto`` and ``local`` are not checked here (Ray resolves them itself).
+
+    Raises:
+        ValueError: the address is malformed or nothing listens there.
+    """
+    if address in ("auto", "local") or address.startswith("ray://"):
+        target = address.removeprefix("ray://")
+        if target in ("auto", "local"):
+            return
+    else:
+        target = address
+    m = re.fullmatch(r"\[?([A-Za-z0-9.\-:]+?)\]?:(\d+)", target)
+    if not m:
+        raise ValueError(
+            f"bad Ray address {address!r}: use auto, local, HOST:PORT or ray://HOST:PORT"
+        )
+    host, port = m.group(1), int(m.group(2))
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except OSError as err:
+        raise ValueError(f"cannot reach a Ray cluster at {address}: {err}") from None
+
+
+class _Progress:
+    """Aggregate progress over a sweep's run directories (polls their statistics.csv)."""
+
+    def __init__(self, spec: SweepSpec, out_dir: Path, enabled: bool):
+        self.spec = spec
+        self.out_dir = out_dir
+        self.total = len(spec.runs) * spec.generations
+        self.bar = None
+        if enabled:
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(
+                total=self.total,
+                unit="gen",
+                desc=f"sweep ({len(spec.runs)} runs)",
+                dynamic_ncols=True,
+            )
+
+    def update(self) -> None:
+        if self.bar is None:
+            return
+        done, batteries, matings = 0, [], []
+        for method, seed in self.spec.runs:
+            path = run_dir(self.out_dir, method, seed) / "statistics.csv"
+            try:
+                table = pd.read_csv(path)
+            except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError):
+                continue
+            done += min(len(table), self.spec.generations)
+            if len(table):
+                last = table.iloc[-1]
+                if not math.isnan(last.get("batteries_mean", math.nan)):
+                    batteries.append(last["batteries_mean"])
+                    matings.append(last["matings_mean"])
+        self.bar.n = done
+        if batteries:
+            self.bar.set_postfix(
+                batteries=f"{sum(batteries) / len(batteries):.1f}",
+                matings=f"{sum(matings) / len(matings):.2f}",
+                refresh=False,
+            )
+        self.bar.refresh()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.update()
+            self.bar.close()
+
+
+def sweep(
+    spec: SweepSpec,
+    out_dir: str | os.PathLike[str],
+    *,
+    workers: int | None = None,
+    backend: str = "local",
+    ray_address: str = "local",
+    max_retries: int = 2,
+    progress: bool = True,
+    poll_seconds: float = 2.0,
+) -> dict[tuple[str, int], pd.DataFrame]:
+    """Run every (method, seed) of ``spec``; return their statistics tables.
+
+    Args:
+        spec: methods, seeds, generations and overrides.
+        out_dir: parent directory of the run directories.
+        workers: concurrent runs for the local backend (default: the number of CPUs).
+        backend: ``"local"`` or ``"ray"``.
+        ray_address: with ``backend="ray"``: ``"auto"``, ``"HOST:PORT"``, ``"ray://HOST:PORT"``
+            or ``"local"`` (start a Ray instance on this machine with ``workers`` CPUs).
+        max_retries: how often a failed run is resubmitted (it resumes from its checkpoint).
+        progress: show the aggregate progress bar.
+        poll_seconds: how often progress is refreshed.
+
+    Raises:
+        ValueError: bad arguments or an unreachable Ray address (before any run starts).
+        SweepFailed: a run still failed after ``max_retries`` retries (the others finish
+            first; their results stay on disk).
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+    ):
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    if not isinstance(max_retries, int) or max_retries < 0:
+        raise ValueError(f"max_retries must be an integer >= 0, got {max_retries!r}")
+    from evolution.api import make_config
+
+    for method in spec.methods:  # validate overrides once, before anything runs
+        make_config(method, **spec.overrides)
+    if backend == "ray":
+        check_ray_address(ray_address)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    bar = _Progress(spec, out, progress)
+    try:
+        if backend == "local":
+            return _sweep_local(
+                spec, out, workers or os.cpu_count() or 1, max_retries, bar, poll_seconds
+            )
+        return _sweep_ray(spec, out, workers, ray_address, max_retries, bar, poll_seconds)
+    finally:
+        bar.close()
+
+
+def _sweep_local(
+    spec: SweepSpec, out: Path, workers: int, max_retries: int, bar: _Progress, poll_seconds: float
+) -> dict[tuple[str, int], pd.DataFrame]:
+    results: dict[tuple[str, int], pd.DataFrame] = {}
+    failures: dict[tuple[str, int], int] = {}
+    errors: dict[tuple[str, int], BaseException] = {}
+    todo = list(spec.runs)
+    context = multiprocessing.get_context("spawn")
+    saved_env = {k: os.environ.get(k) for k in WORKER_ENV}
+    os.environ.update(WORKER_ENV)  # inherited by the spawned workers
+    try:
+        while todo:
+            pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=context)
+            futures = {
+                pool.submit(
+                    run_one,
+                    m,
+                    s,
+                    spec.generations,
+                    str(run_dir(out, m, s)),
+                    dict(spec.overrides),
+                    spec.policies,
+                ): (m, s)
+                for m, s in todo
+            }
+            todo = []
+            pending = set(futures)
+            while pending:
+                done, pending = cf.wait(
+                    pending, timeout=poll_seconds, return_when=cf.FIRST_COMPLETED
+                )
+                bar.update()
+                for fut in done:
+                    key = futures[fut]
+                    try:
+                        results[key] = fut.result()
+                    except Exception as err:  # a crash, a kill (BrokenProcessPool), an error
+                        failures[key] = failures.get(key, 0) + 1
+                        if failures[key] > max_retries:
+                            errors[key] = err
+                        else:
+                            todo.append(key)
+            pool.shutdown(wait=True, cancel_futures=True)
+    finally:
+        for k, v in saved_env.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    _raise_failures(errors)
+    return {key: results[key] for key in spec.runs}
+
+
+def _sweep_ray(
+    spec: SweepSpec,
+    out: Path,
+    workers: int | None,
+    address: str,
+    max_retries: int,
+    bar: _Progress,
+    poll_seconds: float,
+) -> dict[tuple[str, int], pd.DataFrame]:
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("the Ray backend needs ray: pip install 'cyber-rodent[cluster]'") from None
+    started_here = not ray.is_initialized()
+    if started_here:
+        kwargs: dict[str, Any] = {
+            "include_dashboard": False,
+            "log_to_driver": False,
+            "runtime_env": {"env_vars": dict(WORKER_ENV)},
+        }
+        if address == "local":
+            kwargs["num_cpus"] = workers or os.cpu_count() or 1
+        else:
+            kwargs["address"] = address
+        try:
+            ray.init(**kwargs)
+        except (ConnectionError, RuntimeError) as err:
+            raise ValueError(f"cannot connect to the Ray cluster at {address}: {err}") from None
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=max_retries, retry_exceptions=True)(run_one)
+        refs = {
+            remote.remote(
+                m,
+                s,
+                spec.generations,
+                str(run_dir(out, m, s).resolve()),
+                dict(spec.overrides),
+                spec.policies,
+            ): (m, s)
+            for m, s in spec.runs
+        }
+        results: dict[tuple[str, int], pd.DataFrame] = {}
+        errors: dict[tuple[str, int], BaseException] = {}
+        pending = list(refs)
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1, timeout=poll_seconds)
+            bar.update()
+            for ref in done:
+                key = refs[ref]
+                try:
+                    results[key] = ray.get(ref)
+                except Exception as err:  # retries exhausted
+                    errors[key] = err
+        _raise_failures(errors)
+        return {key: results[key] for key in spec.runs}
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+class SweepFailed(RuntimeError):
+    """Some runs of a sweep failed even after their retries (the others are on disk)."""
+
+
+def _raise_failures(errors: dict[tuple[str, int], BaseException]) -> None:
+    if errors:
+        lines = "; ".join(
+            f"{m} seed {s}: {type(e).__name__}: {e}" for (m, s), e in sorted(errors.items())
+        )
+        raise SweepFailed(f"{len(errors)} run(s) failed after retries: {lines}")
+
+
+def load_sweep(
+    out_dir: str | os.PathLike[str], methods: Sequence[str] = METHODS
+) -> dict[str, list[pd.DataFrame]]:
+    """Statistics tables of every run directory under ``out_dir``, grouped by method.
+
+    Also accepts a single run directory (one holding ``statistics.csv``).
+    """
+    out = Path(out_dir)
+    found: dict[str, list[pd.DataFrame]] = {}
+    if (out / "statistics.csv").exists():
+        candidates = [out]
+    else:
+        candidates = sorted(p for p in out.iterdir() if p.is_dir()) if out.is_dir() else []
+    for path in candidates:
+        m = re.fullmatch(r"(ee|ce)-seed(\d+)", path.name)
+        method = m.group(1) if m else _method_of(path)
+        if method in methods and (path / "statistics.csv").exists():
+            found.setdefault(method, []).append(pd.read_csv(path / "statistics.csv"))
+    return found
+
+
+def _method_of(path: Path) -> str | None:
+    import json
+
+    try:
+        record = json.loads((path / "run.json").read_text())
+        return record["config"]["method"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
