@@ -1,0 +1,208 @@
+"""Experiments end to end: the CLI's evolve -> plot -> render, sweeps, kill + resume, bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import imageio.v3 as iio
+import pandas as pd
+import pytest
+
+from evolution.sweep import SweepSpec, load_sweep, parse_seeds, run_dir, sweep
+
+#: A tiny world and population: two robots, four agents, short lives, so a generation takes
+#: a few seconds.
+TINY = ["population_size=4", "n_robots=2", "lifetime_steps=60", "time_sharing_steps=30"]
+TINY_OVERRIDES = {
+    "population_size": 4,
+    "n_robots": 2,
+    "lifetime_steps": 60,
+    "time_sharing_steps": 30,
+}
+
+
+def cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "cyber_rodent.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env={**os.environ, "LP_NUM_THREADS": "1"},
+    )
+
+
+def tiny_args() -> list[str]:
+    return [a for item in TINY for a in ("--set", item)]
+
+
+def test_evolve_plot_render(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    r = cli(
+        "evolve",
+        "--generations",
+        "2",
+        "--seed",
+        "1",
+        "--out",
+        str(out),
+        "--no-progress",
+        *tiny_args(),
+    )
+    assert r.returncode == 0, r.stderr
+    assert "cyber-rodent sweep" in r.stdout  # tells the user how to run the full experiment
+    table = pd.read_csv(out / "statistics.csv")
+    assert table["generation"].tolist() == [0, 1]
+    run = json.loads((out / "run.json").read_text())
+    assert run["seed"] == 1 and run["config"]["evolution"]["population_size"] == 4
+    versions = json.loads((out / "versions.json").read_text())
+    assert versions["packages"]["mujoco"] == "3.17.0"
+    events = pd.read_csv(out / "events.csv")
+    assert {"step", "robot", "kind"} <= set(events.columns)
+    assert list((out / "checkpoints").glob("gen_*.ckpt"))
+
+    r = cli("plot", str(out))
+    assert r.returncode == 0, r.stderr
+    image = iio.imread(out / "figures" / "fig6.png")
+    assert image.ndim == 3 and image.shape[0] > 200
+    assert (out / "figures" / "fig6.pdf").read_bytes().startswith(b"%PDF")
+
+    before = sorted(p.name for p in out.rglob("*"))
+    video = tmp_path / "run.mp4"
+    r = cli("render", str(out), "--out", str(video), "--frames", "5", "--no-progress")
+    assert r.returncode == 0, r.stderr
+    frames = iio.imread(video)
+    assert frames.shape[0] == 5 and frames.std() > 10
+    assert sorted(p.name for p in out.rglob("*")) == before  # the run dir is untouched
+
+
+def test_kill_mid_run_then_resume_is_identical(tmp_path: Path) -> None:
+    reference = tmp_path / "reference"
+    r = cli(
+        "evolve",
+        "--generations",
+        "3",
+        "--seed",
+        "2",
+        "--out",
+        str(reference),
+        "--no-progress",
+        *tiny_args(),
+    )
+    assert r.returncode == 0, r.stderr
+
+    killed = tmp_path / "killed"
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "cyber_rodent.cli",
+            "evolve",
+            "--generations",
+            "3",
+            "--seed",
+            "2",
+            "--out",
+            str(killed),
+            "--no-progress",
+            *tiny_args(),
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.monotonic() + 240
+    while not list((killed / "checkpoints").glob("gen_00001.ckpt")):
+        assert proc.poll() is None, "the run ended before it could be killed"
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert len(pd.read_csv(killed / "statistics.csv")) < 3  # really interrupted
+
+    r = cli("resume", str(killed), "--no-progress")
+    assert r.returncode == 0, r.stderr
+    pd.testing.assert_frame_equal(
+        pd.read_csv(killed / "statistics.csv"), pd.read_csv(reference / "statistics.csv")
+    )
+    pd.testing.assert_frame_equal(
+        pd.read_csv(killed / "events.csv"), pd.read_csv(reference / "events.csv")
+    )
+
+
+def _serial(tmp_path: Path, spec: SweepSpec) -> dict:
+    from behaviours import BehaviourPolicies
+    from evolution.api import run
+
+    return {
+        (m, s): run(m, spec.generations, s, policies=BehaviourPolicies.reactive(), **spec.overrides)
+        for m, s in spec.runs
+    }
+
+
+def test_local_sweep_equals_serial_runs(tmp_path: Path) -> None:
+    spec = SweepSpec(("ee", "ce"), (0, 1), 1, TINY_OVERRIDES, policies="reactive")
+    results = sweep(spec, tmp_path / "sweep", workers=2, progress=False)
+    serial = _serial(tmp_path, spec)
+    for key in spec.runs:
+        pd.testing.assert_frame_equal(results[key], serial[key])
+        assert (run_dir(tmp_path / "sweep", *key) / "statistics.csv").exists()
+    loaded = load_sweep(tmp_path / "sweep")
+    assert sorted(loaded) == ["ce", "ee"] and len(loaded["ee"]) == 2
+
+
+def test_ray_sweep_equals_serial_runs(tmp_path: Path) -> None:
+    pytest.importorskip("ray")
+    spec = SweepSpec(("ee",), (0, 1), 1, TINY_OVERRIDES, policies="reactive")
+    results = sweep(
+        spec, tmp_path / "sweep", workers=2, backend="ray", ray_address="local", progress=False
+    )
+    serial = _serial(tmp_path, spec)
+    for key in spec.runs:
+        pd.testing.assert_frame_equal(results[key], serial[key])
+
+
+def test_parse_seeds() -> None:
+    assert parse_seeds("0-3") == (0, 1, 2, 3)
+    assert parse_seeds("7") == (7,)
+    assert parse_seeds("0,2,5-6") == (0, 2, 5, 6)
+    for bad in ("3-1", "a", "1,1", "-2", ""):
+        with pytest.raises(ValueError, match="seed"):
+            parse_seeds(bad)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["evolve", "--method", "xx"], "invalid choice"),
+        (["evolve", "--set", "no_such_key=1"], "unknown config key 'no_such_key'"),
+        (["evolve", "--set", "population_size=many"], "expected an int"),
+        (["evolve", "--set", "crossover_probability=2"], "crossover_probability"),
+        (["evolve", "--set", "population_size=10"], "divisible"),
+        (["evolve", "--generations", "0"], "generations"),
+        (["sweep", "--seeds", "9-2"], "seed range"),
+        (["sweep", "--methods", "ee,xx"], "methods"),
+        (["sweep", "--seeds", "0-1", "--ray", "127.0.0.1:1"], "cannot reach a Ray cluster"),
+    ],
+)
+def test_bad_input_is_one_line_and_leaves_no_run_dir(tmp_path: Path, args, message) -> None:
+    out = tmp_path / "out"
+    r = cli(*args, "--out", str(out))
+    assert r.returncode == 2
+    assert message in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()
+
+
+def test_existing_out_needs_resume_or_force(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    r = cli("evolve", "--out", str(out))
+    assert r.returncode == 2 and "--resume" in r.stderr
+    r = cli("evolve", "--out", str(out), "--force")
+    assert r.returncode == 2 and "refusing to delete" in r.stderr
+    assert (out / "notes.txt").read_text() == "mine"
