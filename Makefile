@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml .ci/system-deps.sh
 setup: $(STAMP)
 
 run: $(STAMP)
-	$(VENV)/bin/cyber-rodent snapshot --out field.png
+	$(VENV)/bin/cyber-rodent evolve
 
 test: $(STAMP)
 	$(VENV)/bin/python -m pytest
