@@ -8,9 +8,13 @@ allocate a new frame, blob lists and a dozen small arrays per call: harmless for
 measurable share of the runner's per-step budget (it steps 1.2 million times per run). This
 module computes the *same numbers* into buffers it owns:
 
-* with the geometric provider it calls :meth:`GeometricVision.measure_targets` and the same
-  noise model (:func:`cyber_rodent.vision.detections.apply_noise`) as ``observe`` does, then
-  picks each class's nearest detection with ``argmin`` (ties to the lowest target index, as
+* with the geometric provider and no vision noise (the default) it calls
+  :meth:`GeometricVision.nearest_targets`, which casts occlusion rays only until each class's
+  nearest visible target is certain;
+* with the geometric provider and vision noise it calls
+  :meth:`GeometricVision.measure_targets` and the same noise model
+  (:func:`cyber_rodent.vision.detections.apply_noise`) as ``observe`` does, then picks each
+  class's nearest detection with ``argmin`` (ties to the lowest target index, as
   ``frame_from_detections``' stable sort does), skipping the blob lists nobody reads here;
 * any other provider (the rendered camera) goes through ``observe()``;
 * the behaviour inputs follow :mod:`behaviours.inputs` operation for operation (same divisions,
@@ -127,6 +131,11 @@ class Perception:
     def _observe_geometric(self) -> None:
         """``GeometricVision.observe`` without the blob lists (see the module docstring)."""
         vision: GeometricVision = self.vision  # type: ignore[assignment]
+        if not vision.config.noise.enabled:
+            # Noise-free (the default): only the nearest target of each class matters, so the
+            # occlusion rays are cast lazily (bit-identical to the full pass, see its tests).
+            vision.nearest_targets(self.bearing, self.distance, self.visible)
+            return
         t = vision.measure_targets()
         apply_noise(vision.config.noise, vision.rng, t.bearing, t.distance, t.visible)
         masked, bearings = self._masked[:, :-1], self._bearings[:, :-1]
