@@ -251,7 +251,7 @@ class TimeSharingScheduler:
             self.stats.record_death(generation)
             self._on_death(robot, slot)
         elif agent.age >= self.config.lifetime_steps:
-            self.stats.record_full_life(generation, agent.batteries, agent.matings)
+            self.stats.record_full_life(generation, agent.batteries, agent.matings, robot)
             self._on_full_life(robot, slot)
         self._advance(robot)
 

@@ -78,6 +78,26 @@ class GenerationStats:
     spare_list_size: int
 
 
+@dataclass(frozen=True)
+class RobotGenerationStats:
+    """One row of the per-robot table (Fig. 7 plots each robot separately).
+
+    Attributes:
+        generation: generation index, from 0.
+        robot: the physical robot.
+        batteries_mean: mean batteries over the robot's full lifetimes in this generation,
+            agents that never mated scored 0 (the paper's Fig. 7 caption); NaN if none.
+        full_lifetimes: full lifetimes on this robot in this generation.
+        completed: of those, agents that mated at least once.
+    """
+
+    generation: int
+    robot: int
+    batteries_mean: float
+    full_lifetimes: int
+    completed: int
+
+
 @dataclass
 class _Tally:
     """What a still-open generation has seen so far."""
@@ -89,6 +109,7 @@ class _Tally:
     reproductions: int = 0
     crossovers: int = 0
     births: dict[int, int] = field(default_factory=dict)
+    robot_full_life: dict[int, list[tuple[int, bool]]] = field(default_factory=dict)
 
 
 def _mean_std(values: list[int]) -> tuple[float, float]:
@@ -104,6 +125,7 @@ class StatisticsRecorder:
     def __init__(self) -> None:
         self._open: dict[int, _Tally] = {}
         self.rows: list[GenerationStats] = []
+        self.robot_rows: list[RobotGenerationStats] = []
 
     def _tally(self, generation: int) -> _Tally:
         tally = self._open.get(generation)
@@ -113,10 +135,16 @@ class StatisticsRecorder:
             tally = self._open[generation] = _Tally()
         return tally
 
-    def record_full_life(self, generation: int, batteries: int, matings: int) -> None:
-        """An agent of ``generation`` lived the full lifetime."""
+    def record_full_life(
+        self, generation: int, batteries: int, matings: int, robot: int | None = None
+    ) -> None:
+        """An agent of ``generation`` lived the full lifetime (on ``robot``, if given: the
+        per-robot table counts it there)."""
         tally = self._tally(generation)
         tally.full_life_batteries.append(batteries if matings > 0 else 0)
+        if robot is not None:
+            per_robot = tally.__dict__.setdefault("robot_full_life", {})  # older checkpoints
+            per_robot.setdefault(int(robot), []).append((int(batteries), matings > 0))
         if matings > 0:
             tally.batteries.append(batteries)
             tally.matings.append(matings)
@@ -171,7 +199,24 @@ class StatisticsRecorder:
             spare_list_size=int(spare_list_size),
         )
         self.rows.append(row)
+        robot_rows = self.__dict__.setdefault("robot_rows", [])  # absent in older checkpoints
+        per_robot = tally.__dict__.get("robot_full_life", {})
+        for robot in sorted(per_robot):
+            lives = per_robot[robot]
+            robot_rows.append(
+                RobotGenerationStats(
+                    generation=generation,
+                    robot=robot,
+                    batteries_mean=float(np.mean([b if mated else 0 for b, mated in lives])),
+                    full_lifetimes=len(lives),
+                    completed=sum(mated for _, mated in lives),
+                )
+            )
         return row
+
+    def robot_records(self) -> list[dict[str, float | int]]:
+        """The closed per-robot rows as plain dicts (generation, robot, batteries_mean, ...)."""
+        return [dataclasses.asdict(row) for row in self.__dict__.get("robot_rows", [])]
 
     def to_records(self) -> list[dict[str, float | int]]:
         """The closed rows as plain dicts (what crosses package boundaries)."""

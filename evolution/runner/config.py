@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+from cyber_rodent.profiles import HardwareProfile
 from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig
 from cyber_rodent.world import WorldConfig
@@ -41,6 +42,11 @@ class RunConfig:
         camera: the omnidirectional camera (default :class:`CameraConfig`).
         vision: the vision provider, ``"geometric"`` (fast, the default for evolution runs) or
             ``"rendered"`` (the real off-screen camera; much slower).
+        profile: optional hardware-like profile (:mod:`cyber_rodent.profiles`). The runner
+            applies its range-sensor noise and actuator differences; its field and vision
+            parts must already be in ``world`` and ``camera`` (build such a config with
+            :func:`evolution.transfer.hardware_run_config`), which is checked here. None (the
+            default): the plain simulation.
 
     Raises:
         ValueError: an unknown method or vision provider, a sub-config of the wrong type, or
@@ -53,6 +59,7 @@ class RunConfig:
     world: WorldConfig | None = None
     camera: CameraConfig | None = None
     vision: str = "geometric"
+    profile: HardwareProfile | None = None
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -91,6 +98,29 @@ class RunConfig:
         if self.vision not in PROVIDER_NAMES:
             raise ValueError(
                 f"vision must be one of {', '.join(PROVIDER_NAMES)}, got {self.vision!r}"
+            )
+        if self.profile is not None:
+            self._check_profile(self.profile)
+
+    def _check_profile(self, profile: object) -> None:
+        """The profile's field and vision parts must be the world's and the camera's."""
+        if not isinstance(profile, HardwareProfile):
+            raise ValueError(f"profile must be a HardwareProfile or None, got {type(profile)!r}")
+        layout = profile.field
+        if layout.enabled and (self.world.n_robots, self.world.n_packs) != (
+            layout.n_robots,
+            layout.n_packs,
+        ):
+            raise ValueError(
+                f"profile.field ({layout.n_robots} robots, {layout.n_packs} packs) must match "
+                f"world ({self.world.n_robots} robots, {self.world.n_packs} packs); build the "
+                "config with evolution.transfer.hardware_run_config"
+            )
+        if profile.vision.enabled and self.camera.noise != profile.vision.noise():
+            raise ValueError(
+                f"profile.vision ({profile.vision.noise()}) must equal camera.noise "
+                f"({self.camera.noise}); build the config with "
+                "evolution.transfer.hardware_run_config"
             )
 
     def replace(self, **changes: object) -> RunConfig:

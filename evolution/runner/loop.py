@@ -141,8 +141,11 @@ def run_fingerprint(
 ) -> str:
     """What a checkpoint must match to be resumed by a run: config, seed, policies and the
     initial population if one was given."""
+    run = dataclasses.asdict(config)
+    if run.get("profile", 0) is None:
+        del run["profile"]  # runs without a profile keep the fingerprints they always had
     fields: dict[str, Any] = {
-        "run": dataclasses.asdict(config),
+        "run": run,
         "seed": seed,
         "policies": policies_id,
     }
@@ -208,7 +211,8 @@ class EvolutionRunner:
             config, self.seed, self.policies_id, self.initial_genomes_id
         )
 
-        world_ss, scheduler_ss, vision_ss = np.random.SeedSequence(self.seed).spawn(3)
+        # A fourth child (the hardware profile's) leaves the first three streams unchanged.
+        world_ss, scheduler_ss, vision_ss, profile_ss = np.random.SeedSequence(self.seed).spawn(4)
         world_rng = np.random.default_rng(world_ss)
         self.survival = SurvivalWorld(config.world, config.survival, world_rng)
         self.world = self.survival.world
@@ -223,6 +227,20 @@ class EvolutionRunner:
         n = evo.n_robots
         self.controller = NeuralController(n, evo.max_energy, evo.max_recharge_steps)
         self.perception = Perception(self.world, self.vision)
+        self.actuator_sample = self.range_noise = None
+        if config.profile is not None:  # sim-to-real: per-robot drive, noisy IR sensors
+            from cyber_rodent.profiles import RangeSensorNoise, apply_actuators
+
+            actuator_ss, range_ss = profile_ss.spawn(2)
+            self.actuator_sample = apply_actuators(
+                self.world, config.profile.actuators, np.random.default_rng(actuator_ss)
+            )
+            if config.profile.range_noise.enabled:
+                self.range_noise = RangeSensorNoise(
+                    config.profile.range_noise, self.world.range_max,
+                    np.random.default_rng(range_ss),
+                )  # fmt: skip
+                self.perception.range_noise = self.range_noise
         self.events = EventLog()
         self.steps = 0
         self.generation_steps: list[int] = []
@@ -463,6 +481,9 @@ class EvolutionRunner:
             "scheduler": self.scheduler,
             "events": self.events,
             "world": capture_world(self.survival, self.vision),
+            "range_noise_rng": (
+                self.range_noise.rng.bit_generator.state if self.range_noise is not None else None
+            ),
         }
 
     def save_checkpoint(self, path: str | os.PathLike[str]) -> Path:
@@ -559,6 +580,8 @@ class EvolutionRunner:
         self.events = state["events"]
         self.steps = int(state["steps"])
         self.generation_steps = list(state["generation_steps"])
+        if self.range_noise is not None:
+            self.range_noise.rng.bit_generator.state = state["range_noise_rng"]
 
 
 def list_checkpoints(directory: str | os.PathLike[str]) -> list[Path]:

@@ -85,6 +85,9 @@ class Perception:
         self._led_seen = self.visible[:, LED]
         self._prox = _as_slice(PROXIMITY_SIX)
         self._prox_max = np.ascontiguousarray(world.range_max[:, self._prox])
+        #: Optional sensor noise (``cyber_rodent.profiles.RangeSensorNoise``) applied to the
+        #: raw range readings; None (the default) costs one attribute test per step.
+        self.range_noise = None
         self.inputs = BehaviourInputs(
             mate=np.zeros((n, 2)),
             forage=np.zeros((n, 2)),
@@ -152,6 +155,8 @@ class Perception:
 
     def _proximity(self) -> None:
         ranges = self.world.range_readings(out=self.ranges)
+        if self.range_noise is not None:
+            self.range_noise.apply(ranges)
         p = self.proximity
         np.divide(ranges[:, self._prox], self._prox_max, out=p)
         np.subtract(1.0, p, out=p)

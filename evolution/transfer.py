@@ -1,0 +1,320 @@
+"""Transfer evolved agents to a hardware-like colony and continue evolution (paper §4.3, Fig. 7).
+
+The paper took the 5 fittest individuals of generation 40 of a simulated run onto 3 real CRs,
+5 virtual agents each, and evolved them about 10 more generations; sensors were noisier,
+behaviours slower and one robot weaker. :func:`transfer` does the same in simulation with a
+:class:`~cyber_rodent.profiles.HardwareProfile` (or without one, for a control):
+
+1. read the source run's checkpoint of the requested generation (``gen_NNNNN.ckpt`` is written
+   when that many generations have completed; run the source with ``--keep-checkpoints 0`` so
+   that every generation's checkpoint is kept);
+2. rank the population living at that moment (every virtual agent of every robot) by the
+   paper's fitness, batteries / (time lived / 100) of the record so far, agents that have mated
+   first (an unmated agent cannot reproduce, so the paper scores it 0), and take the ``top``;
+3. seed every robot's ``agents_per_robot`` slots with those individuals in rank order
+   (cycling if there are more slots than individuals), the world built with the profile;
+4. run ``generations`` generations of the same method and write a run directory with
+   ``statistics.csv``, the per-robot table ``statistics_per_robot.csv`` (Fig. 7 measure: mean
+   batteries over each robot's full lifetimes, unmated agents scored 0), ``events.csv``,
+   ``transfer.json`` (source, the chosen individuals, the profile, the actuator sample) and
+   ``figures/fig7.png``/``.pdf``.
+
+A transfer run directory cannot be continued with ``cyber-rodent resume`` (its initial
+population is not in ``run.json``); rerun the transfer, which is deterministic for a seed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from cyber_rodent.profiles import HardwareProfile, apply_field, apply_vision
+from evolution.api import CHECKPOINT_DIR, EVENTS_FILE, RUN_FILE, STATISTICS_FILE
+from evolution.genome import Genome
+from evolution.runner import EvolutionRunner, RunConfig, list_checkpoints, policy_identity
+from evolution.scheduler import TimeSharingScheduler
+
+TRANSFER_FILE = "transfer.json"
+ROBOT_STATISTICS_FILE = "statistics_per_robot.csv"
+FIGURE_BASE = "figures/fig7"
+
+
+def _count(name: str, value: object, low: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+        raise ValueError(f"{name} must be an integer in [{low}, ∞), got {value!r}")
+    return int(value)
+
+
+def hardware_run_config(
+    base: RunConfig,
+    profile: HardwareProfile | None,
+    *,
+    robots: int | None = None,
+    agents_per_robot: int | None = None,
+) -> RunConfig:
+    """``base`` moved to the hardware-like world of ``profile``.
+
+    Args:
+        base: the source configuration (method, evolution rules, survival, camera).
+        profile: the hardware-like profile (None: the plain simulation, only the counts change).
+        robots: robots of the new colony (default: the profile's field, else ``base``'s).
+        agents_per_robot: virtual agents per robot (default: ``base``'s).
+
+    Returns:
+        A consistent config: ``n_robots`` and ``population_size`` updated, the field's packs,
+        the camera's noise and the profile itself set.
+    """
+    evo = base.evolution
+    if robots is None:
+        robots = profile.field.n_robots if profile is not None and profile.field.enabled else None
+        robots = robots if robots is not None else evo.n_robots
+    robots = _count("robots", robots, 1)
+    k = _count(
+        "agents_per_robot",
+        agents_per_robot if agents_per_robot is not None else evo.subpopulation_size,
+        1,
+    )
+    world = dataclasses.replace(base.world, n_robots=robots)
+    camera = base.camera
+    if profile is not None:
+        layout = dataclasses.replace(profile.field, n_robots=robots)
+        profile = dataclasses.replace(profile, field=layout)
+        world = apply_field(world, layout)
+        camera = apply_vision(camera, profile.vision)
+    evolution = dataclasses.replace(evo, n_robots=robots, population_size=robots * k)
+    return base.replace(evolution=evolution, world=world, camera=camera, profile=profile)
+
+
+def checkpoint_of_generation(run_dir: str | os.PathLike[str], generation: int) -> Path:
+    """The checkpoint written when ``generation`` generations had completed.
+
+    Raises:
+        ValueError: ``run_dir`` has no such checkpoint; the message lists the generations it
+            has and how to keep them all.
+    """
+    generation = _count("generation", generation, 0)
+    directory = Path(run_dir) / CHECKPOINT_DIR
+    found = list_checkpoints(directory)
+    for path in found:
+        if int(path.stem.split("_")[1]) == generation:
+            return path
+    have = [int(p.stem.split("_")[1]) for p in found]
+    available = ", ".join(map(str, have)) if have else "none"
+    raise ValueError(
+        f"{run_dir} has no checkpoint of generation {generation} (available: {available}); "
+        "evolve the source run with --keep-checkpoints 0 to keep every generation, or choose "
+        "an available generation"
+    )
+
+
+@dataclass(frozen=True)
+class Individual:
+    """One individual chosen for transfer.
+
+    Attributes:
+        genome: its controller weights.
+        fitness: batteries / (age / 100) of its record at the source generation.
+        mated: it had mated at least once.
+        robot, slot: where it lived in the source run.
+    """
+
+    genome: Genome
+    fitness: float
+    mated: bool
+    robot: int
+    slot: int
+
+
+def fittest_individuals(scheduler: TimeSharingScheduler, top: int) -> list[Individual]:
+    """The ``top`` fittest agents of the living population, mated agents first.
+
+    Ties keep the robot-major slot order, so the choice is deterministic.
+    """
+    top = _count("top", top, 1)
+    unit = scheduler.config.fitness_time_unit
+    agents = []
+    for robot in range(scheduler.n_robots):
+        for slot in range(scheduler.subpopulation_size):
+            agent = scheduler.agent(robot, slot)
+            agents.append(
+                Individual(agent.genome, agent.fitness(unit), agent.matings > 0, robot, slot)
+            )
+    if top > len(agents):
+        raise ValueError(f"top must be in [1, {len(agents)}] (the population), got {top}")
+    order = sorted(range(len(agents)), key=lambda i: (not agents[i].mated, -agents[i].fitness, i))
+    return [agents[i] for i in order[:top]]
+
+
+def robot_statistics(runner: EvolutionRunner) -> pd.DataFrame:
+    """Per generation and robot: batteries_mean (unmated agents scored 0), full_lifetimes,
+    completed — the table Fig. 7 plots (:class:`evolution.stats.RobotGenerationStats`)."""
+    columns = ["generation", "robot", "batteries_mean", "full_lifetimes", "completed"]
+    return pd.DataFrame(runner.scheduler.stats.robot_records(), columns=columns)
+
+
+@dataclass(frozen=True)
+class TransferResult:
+    """What :func:`transfer` produced.
+
+    Attributes:
+        out: the run directory.
+        statistics: the pooled per-generation table.
+        per_robot: the per-robot table (Fig. 7).
+        individuals: the transferred individuals.
+        figure: the Fig. 7-style figure's paths (empty if no generation completed).
+    """
+
+    out: Path
+    statistics: pd.DataFrame
+    per_robot: pd.DataFrame
+    individuals: list[Individual]
+    figure: list[Path]
+
+
+def _write_json(path: Path, record: dict[str, Any]) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(record, indent=2, sort_keys=True, default=repr) + "\n")
+    os.replace(tmp, path)
+
+
+def transfer(
+    source: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    generation: int = 40,
+    top: int = 5,
+    robots: int = 3,
+    agents_per_robot: int = 5,
+    generations: int = 10,
+    profile: HardwareProfile | None = None,
+    seed: int = 0,
+    keep_checkpoints: int = 3,
+    max_steps: int | None = None,
+    progress: bool = False,
+) -> TransferResult:
+    """Seed a new colony with the fittest individuals of ``source`` and continue evolution.
+
+    Args:
+        source: the source run directory (``run.json`` and ``checkpoints/``).
+        out: the new run directory (must not hold a run).
+        generation: the source generation whose population is transferred.
+        top: how many of the fittest individuals are transferred.
+        robots: robots of the new colony.
+        agents_per_robot: virtual agents per robot.
+        generations: generations to evolve after the transfer.
+        profile: the hardware-like profile; None: the plain simulation.
+        seed: the new run's seed.
+        keep_checkpoints: newest checkpoints to keep in ``out`` (0: all).
+        max_steps: optional cap on control steps.
+        progress: show a progress bar.
+
+    Raises:
+        ValueError: bad arguments, ``source`` is not a run directory or lacks the generation,
+            ``out`` already holds a run.
+    """
+    from evolution.experiment import policies_for_identity, read_run_record
+
+    top = _count("top", top, 1)
+    generations = _count("generations", generations, 1)
+    seed = _count("seed", seed, 0)
+    src, dst = Path(source), Path(out)
+    record = read_run_record(src)
+    checkpoint = checkpoint_of_generation(src, generation)
+    if (dst / RUN_FILE).exists() or list_checkpoints(dst / CHECKPOINT_DIR):
+        raise ValueError(f"--out {dst} already holds a run; choose an empty directory")
+    policies = policies_for_identity(record["policies"])
+    with EvolutionRunner.from_checkpoint(checkpoint, policies) as source_runner:
+        chosen = fittest_individuals(source_runner.scheduler, top)
+        base = source_runner.config
+    config = hardware_run_config(base, profile, robots=robots, agents_per_robot=agents_per_robot)
+    genomes = [
+        chosen[s % len(chosen)].genome for _ in range(robots) for s in range(agents_per_robot)
+    ]
+    dst.mkdir(parents=True, exist_ok=True)
+    with EvolutionRunner(config, seed, policies, initial_genomes=genomes) as runner:
+        sample = runner.actuator_sample
+        meta = {
+            "source": str(src.resolve()),
+            "source_checkpoint": checkpoint.name,
+            "source_generation": generation,
+            "individuals": [
+                {
+                    "fitness": i.fitness,
+                    "mated": i.mated,
+                    "robot": i.robot,
+                    "slot": i.slot,
+                    "genome": i.genome.weights.tolist(),
+                }
+                for i in chosen
+            ],  # fmt: skip
+            "robots": robots,
+            "agents_per_robot": agents_per_robot,
+            "profile": dataclasses.asdict(profile) if profile is not None else None,
+            "actuator_sample": (
+                {k: np.asarray(v).tolist() for k, v in dataclasses.asdict(sample).items()}
+                if sample is not None
+                else None
+            ),
+            "seed": seed,
+        }
+        _write_json(dst / TRANSFER_FILE, meta)
+
+        def write_tables(r: EvolutionRunner) -> None:
+            r.statistics().to_csv(dst / STATISTICS_FILE, index=False)
+            robot_statistics(r).to_csv(dst / ROBOT_STATISTICS_FILE, index=False)
+
+        _write_json(dst / RUN_FILE, _run_record(runner, generations))
+        table = runner.run(
+            generations,
+            checkpoint_dir=dst / CHECKPOINT_DIR,
+            keep_checkpoints=keep_checkpoints,
+            max_steps=max_steps,
+            progress=progress,
+            on_generation=write_tables,
+        )
+        write_tables(runner)
+        runner.events.write_csv(dst / EVENTS_FILE)
+        _write_json(dst / RUN_FILE, _run_record(runner, generations))
+        per_robot = robot_statistics(runner)
+    figure: list[Path] = []
+    if len(per_robot):
+        from evolution.figures import plot_per_robot
+
+        label = "hardware-like profile" if profile is not None else "simulation"
+        figure = plot_per_robot(
+            per_robot,
+            dst / FIGURE_BASE,
+            title=f"After transfer ({label}): batteries per robot, unmated scored 0",
+        )
+    return TransferResult(dst, table, per_robot, chosen, figure)
+
+
+def _run_record(runner: EvolutionRunner, generations: int) -> dict[str, Any]:
+    return {
+        "config": dataclasses.asdict(runner.config),
+        "seed": runner.seed,
+        "policies": policy_identity(runner.policies),
+        "target_generations": generations,
+        "summary": runner.summary(),
+        "transfer": True,
+    }
+
+
+__all__ = [
+    "ROBOT_STATISTICS_FILE",
+    "TRANSFER_FILE",
+    "Individual",
+    "TransferResult",
+    "checkpoint_of_generation",
+    "fittest_individuals",
+    "hardware_run_config",
+    "robot_statistics",
+    "transfer",
+]
