@@ -18,6 +18,17 @@ Episode settings (the same as the dm-control tasks ``forage``, ``mate`` and ``se
 * **Search**: 4 robots (3 parked: wheels stopped, LEDs off), 5 packs; any start. It never ends
   early. A robot that docks by accident is released at once (recharging is not Search's job).
 
+**Hardware-like episodes** (sim-to-real, :mod:`cyber_rodent.profiles`): with a
+:class:`~cyber_rodent.profiles.HardwareProfile` every episode adds IR range noise and dropouts,
+camera noise and missed detections, and per-robot actuator differences; with the field part on,
+Forage and Search use the hardware's 6 packs and Search its 3 robots (Mate keeps 2 robots, no
+packs). The hardware has one weak robot among ``field.n_robots``: each episode draws which of
+them the learner is, so about one episode in three runs on the weak robot. With
+``randomise=True`` each episode also draws the magnitudes from the profile's ranges
+(:func:`cyber_rodent.profiles.randomised`): domain randomisation for training. The profile's
+draws come from a child of the episode's generator (``rng.spawn``), so the placements are those
+of the plain episodes and two policies evaluated with one seed still see the same starts.
+
 Energy plays no part in a behaviour episode, so robots start with enough energy never to die
 (``initial_energy = max_energy = 1e6``); everything else is the paper's survival world.
 
@@ -51,6 +62,7 @@ Rewards (per robot, per control step; ``γ`` is the learner's discount):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -65,8 +77,15 @@ from behaviours.inputs import (
     search_inputs,
 )
 from cyber_rodent.commands import COMMAND_SPEEDS, N_COMMANDS
+from cyber_rodent.profiles import (
+    HardwareProfile,
+    RangeSensorNoise,
+    apply_actuators,
+    apply_vision,
+    randomised,
+)
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
-from cyber_rodent.vision import make_provider
+from cyber_rodent.vision import CameraConfig, make_provider
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 from cyber_rodent.world import World, WorldConfig
 
@@ -198,6 +217,8 @@ class BehaviourEpisode:
         behaviour: ``"mate"``, ``"forage"`` or ``"search"``.
         config: episode settings.
         timestep: physics timestep, s (default ``WorldConfig``'s).
+        profile: optional hardware-like profile (see the module docstring).
+        randomise: draw the profile's magnitudes anew each episode (needs ``profile``).
 
     Attributes:
         n_learners: robots acting (2 for Mate, else 1).
@@ -205,12 +226,26 @@ class BehaviourEpisode:
     """
 
     def __init__(
-        self, behaviour: str, config: EpisodeConfig | None = None, timestep: float | None = None
+        self,
+        behaviour: str,
+        config: EpisodeConfig | None = None,
+        timestep: float | None = None,
+        profile: HardwareProfile | None = None,
+        randomise: bool = False,
     ) -> None:
         self.behaviour = behaviour_index(behaviour)
         self.name = behaviour
         self.config = config or EpisodeConfig()
+        if profile is not None and not isinstance(profile, HardwareProfile):
+            raise ValueError(f"profile must be a HardwareProfile or None, got {profile!r}")
+        if not isinstance(randomise, bool) or (randomise and profile is None):
+            raise ValueError(f"randomise must be True (with a profile) or False, got {randomise!r}")
+        self.profile, self.randomise = profile, randomise
         robots, packs = {MATE: (2, 0), FORAGE: (1, 5), SEARCH: (4, 5)}[self.behaviour]
+        if profile is not None and profile.field.enabled and self.behaviour != MATE:
+            packs = profile.field.n_packs
+            if self.behaviour == SEARCH:
+                robots = profile.field.n_robots
         world_cfg = WorldConfig(n_robots=robots, n_packs=packs)
         if timestep is not None:
             world_cfg = WorldConfig(n_robots=robots, n_packs=packs, timestep=timestep)
@@ -218,7 +253,21 @@ class BehaviourEpisode:
         self.world = World(world_cfg, fixed)
         survival_cfg = SurvivalConfig(initial_energy=_ENDLESS_ENERGY, max_energy=_ENDLESS_ENERGY)
         self.survival = SurvivalWorld(self.world, survival_cfg, fixed)
-        self.vision = make_provider("geometric", self.world) if self.behaviour != SEARCH else None
+        camera = CameraConfig()
+        if profile is not None:
+            camera = apply_vision(camera, profile.vision)
+        self.vision = (
+            make_provider("geometric", self.world, camera, np.random.default_rng(0))
+            if self.behaviour != SEARCH
+            else None
+        )
+        self._range_noise: RangeSensorNoise | None = None
+        self.episode_profile: HardwareProfile | None = None
+        if profile is not None:
+            m = self.world.model
+            self._drive_as_built = (
+                m.actuator_gainprm.copy(), m.actuator_dynprm.copy(), m.geom_friction.copy()
+            )  # fmt: skip
         self.n_learners = 2 if self.behaviour == MATE else 1
         self.dt = survival_cfg.control_dt
         n = robots
@@ -243,6 +292,8 @@ class BehaviourEpisode:
         Raises:
             RuntimeError: no placement satisfied the start condition.
         """
+        if self.profile is not None:
+            self._apply_profile(rng.spawn(1)[0])
         for _ in range(self.config.max_start_draws):
             self.survival.reset(rng)
             self.world.set_led(self._led)
@@ -299,13 +350,44 @@ class BehaviourEpisode:
         return self.world.poses()[0, :2]
 
     # --- internals -----------------------------------------------------------------------------
+    def _apply_profile(self, rng: np.random.Generator) -> None:
+        """This episode's hardware: noise magnitudes, camera noise, the robots' drives."""
+        profile = randomised(self.profile, rng) if self.randomise else self.profile
+        self.episode_profile = profile
+        if self.vision is not None:
+            self.vision.config = dataclasses.replace(
+                self.vision.config, noise=profile.vision.noise()
+            )
+            self.vision.rng = rng
+        noise = profile.range_noise
+        self._range_noise = (
+            RangeSensorNoise(noise, self.world.range_max, rng) if noise.active else None
+        )
+        m = self.world.model
+        gain, dyn, friction = self._drive_as_built
+        m.actuator_gainprm[:] = gain
+        m.actuator_dynprm[:] = dyn
+        m.geom_friction[:] = friction
+        drive = profile.actuators
+        if drive.enabled:
+            hardware_robots = profile.field.n_robots if profile.field.enabled else 3
+            learner_is_weak = int(rng.integers(hardware_robots)) == drive.weak_robot
+            variation = dataclasses.replace(drive, weak_robot=0 if learner_is_weak else -1)
+            apply_actuators(self.world, variation, rng)
+
+    def _ranges(self) -> np.ndarray:
+        ranges = self.world.range_readings()
+        if self._range_noise is not None:
+            self._range_noise.apply(ranges)
+        return ranges
+
     def _observe(self) -> np.ndarray:
         k = self.n_learners
         if self.behaviour == SEARCH:
-            ranges = self.world.range_readings()[:k]
+            ranges = self._ranges()[:k]
             return search_inputs(ranges, self.world.range_max[:k])
         self._frame = self.vision.observe()
-        inputs = behaviour_inputs(self._frame, self.world.range_readings(), self.world.range_max)
+        inputs = behaviour_inputs(self._frame, self._ranges(), self.world.range_max)
         return inputs.of(self.behaviour)[:k].copy()
 
     def _start_ok(self) -> bool:

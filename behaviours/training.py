@@ -43,6 +43,7 @@ from behaviours.inputs import BEHAVIOUR_NAMES
 from behaviours.sarsa import SarsaConfig, SarsaLambda
 from behaviours.tile_coding import TileCoder
 from cyber_rodent.commands import COMMAND_NAMES, N_COMMANDS
+from cyber_rodent.profiles import HardwareProfile
 
 #: Episodes a full training run of each behaviour uses by default (what the shipped values
 #: were trained with).
@@ -234,6 +235,8 @@ def train(
     resume: bool = False,
     progress: bool = True,
     config: TrainingConfig | None = None,
+    profile: HardwareProfile | None = None,
+    randomise: bool = False,
 ) -> TrainingResult:
     """Train one behaviour and write its values, curve and checkpoint to ``out_dir``.
 
@@ -246,6 +249,10 @@ def train(
         resume: continue from ``<out_dir>/<name>_checkpoint.npz``.
         progress: show a tqdm progress bar (with ETA) on stderr.
         config: learning and episode settings.
+        profile: optional hardware-like profile of the episodes (sim-to-real).
+        randomise: domain randomisation: each episode draws its noise and actuator
+            magnitudes from ``profile``'s ranges (default profile: :class:`HardwareProfile()`),
+            see :mod:`behaviours.episodes`.
 
     Returns:
         The values and the paths written.
@@ -269,7 +276,9 @@ def train(
         "png": out / f"{behaviour}_curve.png",
         "checkpoint": out / f"{behaviour}_checkpoint.npz",
     }
-    env = BehaviourEpisode(behaviour, config.episode)
+    if randomise is True and profile is None:
+        profile = HardwareProfile()
+    env = BehaviourEpisode(behaviour, config.episode, profile=profile, randomise=randomise)
     k = env.n_learners
     coder = TileCoder(s.coder)
     weights = np.zeros((N_COMMANDS, coder.table_size))
@@ -282,6 +291,9 @@ def train(
         "coder": s.coder.to_dict(),
         "config": config.to_dict(),
     }
+    if profile is not None:  # absent otherwise: plain checkpoints keep their identity
+        described = {"hardware": asdict(profile), "randomise": randomise}
+        identity["profile"] = json.loads(json.dumps(described))  # as a checkpoint reads it
     start = 0
     if resume:
         if not paths["checkpoint"].is_file():
@@ -289,7 +301,8 @@ def train(
                 f"no checkpoint to resume: {paths['checkpoint']} does not exist"
             )
         state, saved_weights, curve = _read_checkpoint(paths["checkpoint"])
-        for key, want in identity.items():
+        for key in {**identity, "profile": None}:  # a profile absent from either side too
+            want = identity.get(key)
             if state.get(key) != want:
                 raise CheckpointError(
                     f"{paths['checkpoint']}: {key} differs from this run's "
@@ -373,6 +386,7 @@ def train(
             seed=seed,
             episodes=total,
             trainer=config.to_dict(),
+            **({"profile": identity["profile"]} if profile is not None else {}),
             **_final_training_measures(behaviour, curve),
         ),
     )

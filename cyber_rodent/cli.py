@@ -58,7 +58,11 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
     from behaviours.definitions import spec
     from behaviours.inputs import BEHAVIOUR_NAMES
     from behaviours.training import check_episodes, train
+    from cyber_rodent.profiles import HardwareProfile, profile_by_name
 
+    profile = profile_by_name(args.profile)
+    if args.randomise and profile is None:
+        profile = HardwareProfile()  # the ranges the episodes are drawn from
     names = BEHAVIOUR_NAMES if args.behaviour is None else (args.behaviour,)
     for name in names:
         spec(name)  # unknown name: fail before any work
@@ -72,6 +76,8 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
             out_dir=args.out,
             resume=args.resume,
             progress=not args.no_progress,
+            profile=profile,
+            randomise=args.randomise,
         )
         recent = result.curve[-100:]
         if name == "search":
@@ -103,6 +109,7 @@ def _cmd_evolve(args: argparse.Namespace) -> int:
             resume=args.resume,
             force=args.force,
             checkpoint_every=args.checkpoint_every,
+            keep_checkpoints=args.keep_checkpoints,
             progress=not args.no_progress,
             argv=sys.argv,
         )
@@ -129,6 +136,41 @@ def _report_run(path, table) -> None:
             f"matings {last['matings_mean']:.2f}"
         )
     print(f"run directory: {path}  (statistics.csv, events.csv, figures/, checkpoints/)")
+
+
+def _cmd_transfer(args: argparse.Namespace) -> int:
+    from cyber_rodent.profiles import profile_by_name
+    from evolution.transfer import ROBOT_STATISTICS_FILE, transfer
+
+    profile = profile_by_name(args.profile)
+    result = transfer(
+        args.source,
+        args.out,
+        generation=args.generation,
+        top=args.top,
+        robots=args.robots,
+        agents_per_robot=args.agents_per_robot,
+        generations=args.generations,
+        profile=profile,
+        seed=args.seed,
+        progress=not args.no_progress,
+    )
+    table = result.per_robot
+    if len(table):
+        first = table[table["generation"] == table["generation"].min()]
+        last = table[table["generation"] == table["generation"].max()]
+        for robot in sorted(table["robot"].unique()):
+            a = first.loc[first["robot"] == robot, "batteries_mean"]
+            b = last.loc[last["robot"] == robot, "batteries_mean"]
+            print(
+                f"CR {robot + 1}: batteries per agent {a.iloc[0] if len(a) else float('nan'):.2f}"
+                f" -> {b.iloc[0] if len(b) else float('nan'):.2f}"
+            )
+    print(
+        f"transfer run: {result.out}  (statistics.csv, {ROBOT_STATISTICS_FILE}, transfer.json, "
+        "figures/fig7.png)"
+    )
+    return 0
 
 
 def _cmd_resume(args: argparse.Namespace) -> int:
@@ -286,6 +328,18 @@ def build_parser() -> argparse.ArgumentParser:
         "--resume", action="store_true", help="continue from the checkpoint in --out"
     )
     train.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    train.add_argument(
+        "--profile",
+        default="sim",
+        choices=("sim", "hardware"),
+        help="episode world: the plain simulation or the hardware-like profile",
+    )
+    train.add_argument(
+        "--randomise",
+        action="store_true",
+        help="domain randomisation: each episode draws its sensor noise and actuator "
+        "differences from the hardware profile's ranges",
+    )
     train.set_defaults(func=_cmd_train_behaviours)
 
     evolve = sub.add_parser(
@@ -311,6 +365,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=_int_arg("--checkpoint-every"),
         default=1,
         help="generations between checkpoints",
+    )
+    evolve.add_argument(
+        "--keep-checkpoints",
+        type=_int_arg("--keep-checkpoints"),
+        default=3,
+        help="newest checkpoints to keep (default 3; 0 keeps every generation, which "
+        "'transfer --generation' needs)",
     )
     _add_run_options(evolve)
     evolve.set_defaults(func=_cmd_evolve)
@@ -386,6 +447,33 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--steps-per-frame", type=_int_arg("--steps-per-frame"), default=1)
     render.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     render.set_defaults(func=_cmd_render)
+
+    move = sub.add_parser(
+        "transfer",
+        help="seed a hardware-like colony with a run's fittest agents and keep evolving (Fig. 7)",
+        description="Take the fittest individuals of one generation of a run (its checkpoint: "
+        "evolve it with --keep-checkpoints 0), put them on --robots robots with "
+        "--agents-per-robot virtual agents each, and continue embodied evolution, by default "
+        "in the hardware-like profile (noisy IR and vision, per-robot motors, 3 robots and 6 "
+        "packs). Writes a run directory with per-robot statistics and a Fig. 7-style figure.",
+    )
+    move.add_argument("--from", dest="source", required=True, help="source run directory")
+    move.add_argument(
+        "--generation", type=_int_arg("--generation"), default=40, help="source generation"
+    )
+    move.add_argument("--top", type=_int_arg("--top"), default=5, help="fittest individuals")
+    move.add_argument("--robots", type=_int_arg("--robots"), default=3)
+    move.add_argument("--agents-per-robot", type=_int_arg("--agents-per-robot"), default=5)
+    move.add_argument(
+        "--generations", type=_int_arg("--generations"), default=10, help="generations after"
+    )
+    move.add_argument(
+        "--profile", default="hardware", choices=("hardware", "sim"), help="world profile"
+    )
+    move.add_argument("--seed", type=_int_arg("--seed"), default=0)
+    move.add_argument("--out", required=True, help="new run directory")
+    move.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    move.set_defaults(func=_cmd_transfer)
     return parser
 
 

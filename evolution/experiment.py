@@ -270,6 +270,7 @@ def evolve(
     resume: bool = False,
     force: bool = False,
     checkpoint_every: int = 1,
+    keep_checkpoints: int = 3,
     progress: bool = True,
     argv: list[str] | None = None,
 ) -> tuple[Path, pd.DataFrame]:
@@ -297,6 +298,7 @@ def evolve(
         policies=chosen,
         resume=resume,
         checkpoint_every=checkpoint_every,
+        keep_checkpoints=keep_checkpoints,
         progress=progress,
         **overrides,
     )

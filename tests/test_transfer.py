@@ -122,3 +122,14 @@ def test_transfer_is_deterministic(source_run, tmp_path) -> None:
     assert (tmp_path / "a" / "events.csv").read_text() == (
         tmp_path / "b" / "events.csv"
     ).read_text()
+
+
+def test_cli_transfer_reports_a_missing_generation_in_one_line(source_run, tmp_path, capsys):
+    from cyber_rodent.cli import main
+
+    code = main(["transfer", "--from", str(source_run), "--generation", "40",
+                 "--out", str(tmp_path / "t")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("cyber-rodent: error: ") and err.count("\n") == 1
+    assert "no checkpoint of generation 40 (available: 1, 2, 3)" in err
