@@ -119,6 +119,13 @@ class EvolutionConfig:
             it mated. The paper (§2) says a zero fitness "means that a virtual agent dies ... or
             ... is not able to perform any successful mating"; DESIGN.md §5 only names the
             mating condition. ``True`` follows the paper.
+        ee_close_quorum: EE only (our reading; the paper leaves it open, §4.1): the share of
+            slots that must have passed generation g before g's statistics row closes and
+            counts as completed. Reproduction is asynchronous, so a slot whose agents keep
+            dying lags behind; with 1.0 one such slot holds back every row and the run's end.
+            At 0.9 a row closes once 90 % of the slots have moved past it; agents of a closed
+            generation that finish later (in lagging slots) are counted in
+            ``StatisticsRecorder.late`` instead of a row.
         genetics: the genome and its operators (Table 2).
     """
 
@@ -131,6 +138,7 @@ class EvolutionConfig:
     max_recharge_steps: int = 40
     fitness_time_unit: float = 100.0
     ce_fitness_requires_survival: bool = True
+    ee_close_quorum: float = 0.9
     genetics: GeneticConfig = field(default_factory=GeneticConfig)
 
     def __post_init__(self) -> None:
@@ -152,6 +160,7 @@ class EvolutionConfig:
                 "ce_fitness_requires_survival must be True or False, got "
                 f"{self.ce_fitness_requires_survival!r}"
             )
+        _check_real("ee_close_quorum", self.ee_close_quorum, 0.0, 1.0, low_open=True)
         if not isinstance(self.genetics, GeneticConfig):
             raise ValueError(f"genetics must be a GeneticConfig, got {type(self.genetics)!r}")
         if self.genetics.tournament_size > self.population_size:

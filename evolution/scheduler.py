@@ -41,6 +41,7 @@ states, statistics), which is what checkpoints store.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -314,10 +315,19 @@ class EmbodiedEvolution(TimeSharingScheduler):
         self.spare_lists: list[list[Genome]] = [[] for _ in range(self.n_robots)]
         self.robot_rngs: list[np.random.Generator] = rng.spawn(self.n_robots)
         self._next_to_close = 0
+        n_slots = self.slot_generation.size
+        # Rows close once this many slots have passed a generation (EvolutionConfig).
+        self._quorum = max(1, math.ceil(config.ee_close_quorum * n_slots - 1e-9))
+        self.stats.accept_late = self._quorum < n_slots
 
     def completed_generations(self) -> int:
-        """Generations every slot has completed (the closed rows of :attr:`stats`)."""
-        return int(self.slot_generation.min())
+        """Generations a quorum of slots has completed (the closed rows of :attr:`stats`)."""
+        return self._next_to_close
+
+    def _quorum_generation(self) -> int:
+        """The highest generation that at least the quorum of slots has reached."""
+        flat = self.slot_generation.ravel()
+        return int(np.partition(flat, flat.size - self._quorum)[flat.size - self._quorum])
 
     def _on_death(self, robot: int, slot: int) -> None:
         genome, origin = draw_replacement(
@@ -342,7 +352,7 @@ class EmbodiedEvolution(TimeSharingScheduler):
             genome, origin = result.offspring, Origin.OFFSPRING
         self.slot_generation[robot, slot] = generation + 1
         self._new_agent(robot, slot, genome, origin)
-        while self.slot_generation.min() > self._next_to_close:
+        while self._quorum_generation() > self._next_to_close:
             spare = sum(len(spares) for spares in self.spare_lists)
             self.stats.close(self._next_to_close, spare)
             self._next_to_close += 1

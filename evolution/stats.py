@@ -124,6 +124,10 @@ class StatisticsRecorder:
 
     def __init__(self) -> None:
         self._open: dict[int, _Tally] = {}
+        #: Accept (and count in :attr:`late`) events of already-closed generations: EE rows close
+        #: at a quorum of slots (``EvolutionConfig.ee_close_quorum``), so lagging slots report late.
+        self.accept_late = False
+        self.late = 0
         self.rows: list[GenerationStats] = []
         self.robot_rows: list[RobotGenerationStats] = []
 
@@ -131,6 +135,9 @@ class StatisticsRecorder:
         tally = self._open.get(generation)
         if tally is None:
             if self.rows and generation <= self.rows[-1].generation:
+                if self.accept_late:
+                    self.late += 1
+                    return _Tally()  # counted, not tallied: its row is already written
                 raise RuntimeError(f"generation {generation} is already closed")
             tally = self._open[generation] = _Tally()
         return tally

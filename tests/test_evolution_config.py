@@ -52,6 +52,8 @@ def test_configs_are_frozen() -> None:
         ({"initial_energy": -1.0}, "initial_energy"),
         ({"initial_energy": 300.0}, "initial_energy"),
         ({"max_energy": float("nan")}, "max_energy"),
+        ({"ee_close_quorum": 0.0}, "ee_close_quorum"),
+        ({"ee_close_quorum": 1.5}, "ee_close_quorum"),
         ({"max_recharge_steps": 0}, "max_recharge_steps"),
         ({"fitness_time_unit": 0.0}, "fitness_time_unit"),
         ({"ce_fitness_requires_survival": 1}, "ce_fitness_requires_survival"),

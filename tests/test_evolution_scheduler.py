@@ -401,7 +401,9 @@ def _evolve(scheduler: TimeSharingScheduler, colony: _StandInColony, generations
 
 
 def test_ee_long_run_has_nontrivial_statistics_and_selection_works() -> None:
-    cfg = EvolutionConfig()
+    # Quorum 1.0: rows close only when every slot has passed, so the per-row birth accounting
+    # below is exact (with a quorum < 1, lagging slots' late events are counted apart).
+    cfg = EvolutionConfig(ee_close_quorum=1.0)
     ee = EmbodiedEvolution(cfg, np.random.default_rng(1))
     colony = _StandInColony(cfg.n_robots, seed=2)
     _evolve(ee, colony, 4)
@@ -484,3 +486,33 @@ def test_bad_constructor_input() -> None:
         EmbodiedEvolution(cfg, 0)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="config"):
         EmbodiedEvolution({}, np.random.default_rng(0))  # type: ignore[arg-type]
+
+
+def test_ee_rows_close_at_the_quorum_of_slots() -> None:
+    """4 robots x 5 slots = 20 slots; quorum 0.9 -> 18 slots must have passed a generation."""
+    cfg = EvolutionConfig(population_size=20, ee_close_quorum=0.9)
+    ee = EmbodiedEvolution(cfg, np.random.default_rng(0))
+    assert ee._quorum == 18
+    ee.slot_generation[:] = 3
+    ee.slot_generation[0, :2] = 0  # two lagging slots: 18 slots have reached generation 3
+    assert ee._quorum_generation() == 3
+    ee.slot_generation[0, 2] = 1  # a third laggard: only 17 slots at 3, 18 at >= 1
+    assert ee._quorum_generation() == 1
+    exact = EmbodiedEvolution(
+        EvolutionConfig(population_size=20, ee_close_quorum=1.0), np.random.default_rng(0)
+    )
+    exact.slot_generation[:] = 3
+    exact.slot_generation[0, 0] = 0
+    assert exact._quorum_generation() == 0 and exact._quorum == 20
+
+
+def test_ee_quorum_run_counts_late_events_and_finishes() -> None:
+    cfg = EvolutionConfig(ee_close_quorum=0.9)
+    ee = EmbodiedEvolution(cfg, np.random.default_rng(1))
+    colony = _StandInColony(cfg.n_robots, seed=2)
+    _evolve(ee, colony, 4)
+    assert len(ee.stats.rows) == 4 and ee.completed_generations() == 4
+    # A tenth of the slots may still be behind the last closed row.
+    passed = (ee.slot_generation >= 4).sum()
+    assert passed >= 90 and ee.slot_generation.size == 100
+    assert ee.stats.late >= 0
