@@ -324,6 +324,11 @@ class EmbodiedEvolution(TimeSharingScheduler):
         """Generations a quorum of slots has completed (the closed rows of :attr:`stats`)."""
         return self._next_to_close
 
+    @property
+    def close_quorum(self) -> int:
+        """Slots that must have passed a generation for its row to close."""
+        return self._quorum
+
     def _quorum_generation(self) -> int:
         """The highest generation that at least the quorum of slots has reached."""
         flat = self.slot_generation.ravel()

@@ -79,6 +79,8 @@ if TYPE_CHECKING:
 
 #: Version of the runner's checkpoint payload layout.
 RUNNER_STATE_VERSION = 1
+#: Control steps between progress-bar refreshes while a generation is under way.
+_PROGRESS_EVERY = 500
 _CHECKPOINT_NAME = "gen_{:05d}.ckpt"
 _CHECKPOINT_RE = re.compile(r"^gen_(\d{5,})\.ckpt$")
 
@@ -406,6 +408,8 @@ class EvolutionRunner:
                 if max_steps is not None and self.steps >= max_steps:
                     break
                 if not step():
+                    if bar is not None and self.steps % _PROGRESS_EVERY == 0:
+                        self._show_progress(bar, generations, started, start_steps)
                     continue
                 done = self.completed_generations
                 if directory is not None and done - last_saved >= checkpoint_every:
@@ -413,15 +417,39 @@ class EvolutionRunner:
                     last_saved = done
                     _prune(directory, keep_checkpoints)
                 if bar is not None:
-                    rate = (self.steps - start_steps) / max(time.perf_counter() - started, 1e-9)
-                    bar.set_postfix(steps=self.steps, steps_per_s=f"{rate:.0f}")
-                    bar.update(min(done, generations) - bar.n)
+                    self._show_progress(bar, generations, started, start_steps)
                 if on_generation is not None:
                     on_generation(self)
         finally:
             if bar is not None:
                 bar.close()
         return self.statistics()
+
+    def generation_progress(self) -> float:
+        """Completed generations plus the share of the next one done (for progress bars).
+
+        EE: the share of the slots (up to the closing quorum) already past the next
+        generation; CE: the share of the population that has finished its lifetime.
+        """
+        done = self.completed_generations
+        scheduler = self.scheduler
+        if isinstance(scheduler, EmbodiedEvolution):
+            ahead = int((scheduler.slot_generation > done).sum())
+            share = ahead / scheduler.close_quorum
+        else:
+            share = float(scheduler.finished.mean())
+        return done + min(share, 0.999)
+
+    def _show_progress(self, bar: Any, generations: int, started: float, start_steps: int) -> None:
+        rate = (self.steps - start_steps) / max(time.perf_counter() - started, 1e-9)
+        postfix = {"steps": self.steps, "steps/s": f"{rate:.0f}"}
+        rows = self.scheduler.stats.rows
+        if rows and rows[-1].completed:
+            postfix["batteries"] = f"{rows[-1].batteries_mean:.1f}"
+            postfix["matings"] = f"{rows[-1].matings_mean:.2f}"
+        bar.set_postfix(postfix, refresh=False)
+        bar.n = round(min(self.generation_progress(), generations), 3)
+        bar.refresh()
 
     def close(self) -> None:
         """Release the vision provider's resources (the rendered camera's OpenGL context)."""
