@@ -57,25 +57,21 @@ def choose_policies(name: str) -> tuple[BehaviourPolicies, str]:
 class _PhysicsRecorder:
     """Stands in for ``mujoco.mj_step`` during a block of runner steps: records what each call
     integrates from (wheel commands, docking welds on/off and their poses, which live in the
-    model) for the replay, and times the call itself."""
+    model, the number of substeps and the model's disable flags: the runner evaluates its
+    rangefinders only in a control step's last substep) for the replay, and times the call."""
 
     def __init__(self, real_step, block: int, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         self.real_step = real_step
-        self.ctrl = np.zeros((block, m.nu))
-        self.eq_active = np.zeros((block, m.neq), dtype=d.eq_active.dtype)
-        self.eq_data = np.zeros((block, *m.eq_data.shape))
-        self.calls = 0
+        self.calls: list[tuple[np.ndarray, np.ndarray, np.ndarray, int, int]] = []
         self.seconds = 0.0
 
     def __call__(self, m: mujoco.MjModel, d: mujoco.MjData, nstep: int = 1) -> None:
-        i = self.calls
-        self.ctrl[i] = d.ctrl
-        self.eq_active[i] = d.eq_active
-        self.eq_data[i] = m.eq_data
+        self.calls.append(
+            (d.ctrl.copy(), d.eq_active.copy(), m.eq_data.copy(), nstep, m.opt.disableflags)
+        )
         start = time.perf_counter()
         self.real_step(m, d, nstep=nstep)
         self.seconds += time.perf_counter() - start
-        self.calls += 1
 
 
 def measure(runner: EvolutionRunner, steps: int, block: int) -> dict[str, float]:
@@ -98,25 +94,31 @@ def measure(runner: EvolutionRunner, steps: int, block: int) -> dict[str, float]
             recorder = _PhysicsRecorder(real_step, k, m, d)
             mujoco.mj_copyData(scratch, m, d)
             eq_now = m.eq_data.copy()
+            flags_now = m.opt.disableflags
             mujoco.mj_step = recorder
             start = time.perf_counter()
             for _ in range(k):
                 runner.step()
             totals["runner_s"] += time.perf_counter() - start
             mujoco.mj_step = real_step
-            if recorder.calls != k:
-                raise RuntimeError(f"expected {k} mj_step calls, recorded {recorder.calls}")
+            calls = recorder.calls
+            if sum(c[3] for c in calls) != k * substeps:
+                raise RuntimeError(f"expected {k * substeps} substeps, recorded {len(calls)} calls")
             totals["inside_s"] += recorder.seconds
             eq_after = m.eq_data.copy()
             m.eq_data[:] = eq_now
+            opt = m.opt
             start = time.perf_counter()
-            for i in range(k):
-                scratch.ctrl[:] = recorder.ctrl[i]
-                scratch.eq_active[:] = recorder.eq_active[i]
-                m.eq_data[:] = recorder.eq_data[i]
-                real_step(m, scratch, nstep=substeps)
+            for ctrl, eq_active, eq_data, nstep, flags in calls:
+                scratch.ctrl[:] = ctrl
+                scratch.eq_active[:] = eq_active
+                m.eq_data[:] = eq_data
+                opt.disableflags = flags
+                real_step(m, scratch, nstep=nstep)
             totals["raw_s"] += time.perf_counter() - start
-            m.eq_data[:] = eq_after  # the model is the runner's: leave it as the runner left it
+            # The model is the runner's: leave it as the runner left it.
+            m.eq_data[:] = eq_after
+            opt.disableflags = flags_now
             if not np.array_equal(scratch.qpos, d.qpos):
                 raise RuntimeError("the replay diverged from the runner's physics")
             done += k

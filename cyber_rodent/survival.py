@@ -54,6 +54,7 @@ from cyber_rodent.world import LED_OFF_RGBA, LED_ON_RGBA, World, WorldConfig, do
 # Weld equality data layout (MuJoCo 3.x ``eq_data`` row): anchor (3), relative pose of body2 in
 # body1's frame: position (3) then quaternion (4), torque scale (1).
 _WELD_RELPOS = slice(3, 6)
+_DSBL_SENSOR = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 _WELD_RELQUAT = slice(6, 10)
 
 
@@ -427,8 +428,31 @@ class SurvivalWorld:
             ValueError: on NaN, infinite or out-of-range wheel speeds or wrong shapes.
         """
         self.begin_step(wheels, led, mate, recharge_continue)
-        mujoco.mj_step(self.world.model, self.world.data, nstep=self.n_substeps)
+        self.advance_physics()
         return self.end_step()
+
+    def advance_physics(self) -> None:
+        """The control step's ``n_substeps`` physics steps, with sensors evaluated only once.
+
+        The world's sensors are its 32 rangefinders (rays), read once per control step, after
+        the physics; evaluated in every substep they were 30 % of ``mj_step``'s cost. They do
+        not act on the dynamics, so the first ``n_substeps - 1`` steps run with MuJoCo's
+        sensor stage disabled and the last one with it enabled (as configured): the trajectory
+        and ``sensordata`` are bit-identical to ``mj_step(nstep=n_substeps)``
+        (``tests/test_survival_sensor_deferral.py`` checks both).
+        """
+        m, d, n_sub = self.world.model, self.world.data, self.n_substeps
+        if n_sub > 1:
+            opt = m.opt
+            flags = opt.disableflags
+            opt.disableflags = flags | _DSBL_SENSOR
+            try:
+                mujoco.mj_step(m, d, nstep=n_sub - 1)
+            finally:
+                opt.disableflags = flags
+            mujoco.mj_step(m, d)
+        else:
+            mujoco.mj_step(m, d, nstep=n_sub)
 
     def begin_step(
         self,
