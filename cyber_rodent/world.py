@@ -103,6 +103,9 @@ def build_mjcf(n_robots: int, n_packs: int, timestep: float) -> mjcf.RootElement
     """The field's MJCF tree with ``n_robots`` robots and ``n_packs`` packs at the origin."""
     arena = mjcf.from_path(str(asset_path(C.ARENA_XML)))
     arena.option.timestep = timestep
+    # MuJoCo's arena holds contacts and constraint rows; pile-ups grow with the robot count
+    # (16 robots overflowed 4 MB). 4 MB per robot, at least the arena file's 16 MB.
+    arena.size.memory = f"{max(16, 4 * n_robots)}M"
     robot_file = str(asset_path(C.ROBOT_XML))
     pack_file = str(asset_path(C.BATTERY_PACK_XML))
     for i in range(n_robots):
