@@ -174,3 +174,11 @@ def test_missing_asset_gives_clear_error(tmp_path, monkeypatch) -> None:
         asset_path(C.ARENA_XML)
     with pytest.raises(AssetNotFoundError):
         World(WorldConfig())
+
+
+def test_sixteen_robots_pile_up_without_overflow() -> None:
+    """The contact arena scales with the robot count: 16 robots driving into each other."""
+    w = World(WorldConfig(n_robots=16, n_packs=5), np.random.default_rng(0))
+    w.set_wheel_speeds(np.full(16, 1.0), np.full(16, 1.0))
+    w.step(1000)
+    assert w.data.ncon >= 16 * 4 and np.all(w.uprightness() > 0.9)
