@@ -29,11 +29,14 @@ LED_ON_RGBA = np.array([0.1, 1.0, 0.1, 1.0])
 LED_OFF_RGBA = np.array([0.05, 0.15, 0.05, 1.0])
 
 _PLACEMENT_MARGIN = 0.02  # m, extra gap between placed bodies and to the walls
-_MAX_PACKING_DENSITY = 0.35  # share of the usable field area that placed discs may cover
+_MAX_PACKING_DENSITY = 0.4  # share of the usable field area that placed discs may cover
 _PLACEMENT_ATTEMPTS = 2000
 #: Extra clearance between a pack and the walls (m): a robot (18 cm wide) can always pass
 #: between them, so no robot gets wedged in a pack-wall gap it cannot turn in.
 PACK_WALL_CLEARANCE = 0.2
+#: Smallest gap between two packs (m): wider than a robot turning in place (0.28 m), so no
+#: robot gets jammed between two packs (a 19 cm gap once held a robot for the rest of a run).
+PACK_GAP = 0.3
 
 
 @dataclass(frozen=True)
@@ -78,9 +81,14 @@ def _usable_area() -> float:
     return (2 * half) ** 2
 
 
+def _pack_placement_radius() -> float:
+    """Packs are placed as discs this big, which keeps ``PACK_GAP`` between any two."""
+    return max(C.PACK_RADIUS + PACK_GAP / 2, C.PACK_RADIUS + _PLACEMENT_MARGIN)
+
+
 def _disc_area(n_robots: int, n_packs: int) -> float:
     r_robot = C.BODY_RADIUS + _PLACEMENT_MARGIN
-    r_pack = C.PACK_RADIUS + _PLACEMENT_MARGIN
+    r_pack = _pack_placement_radius()
     return math.pi * (n_robots * r_robot**2 + n_packs * r_pack**2)
 
 
@@ -88,7 +96,7 @@ def max_counts() -> tuple[int, int]:
     """The largest robot count (with no packs) and pack count (with one robot) that fit."""
     budget = _usable_area() * _MAX_PACKING_DENSITY
     r_robot = C.BODY_RADIUS + _PLACEMENT_MARGIN
-    r_pack = C.PACK_RADIUS + _PLACEMENT_MARGIN
+    r_pack = _pack_placement_radius()
     max_robots = int(budget / (math.pi * r_robot**2))
     max_packs = int((budget - math.pi * r_robot**2) / (math.pi * r_pack**2))
     return max_robots, max_packs
@@ -252,10 +260,12 @@ class World:
         radii = np.concatenate(
             [
                 np.full(n, C.BODY_RADIUS + _PLACEMENT_MARGIN),
-                np.full(k, C.PACK_RADIUS + _PLACEMENT_MARGIN),
+                np.full(k, _pack_placement_radius()),
             ]
         )
-        wall_margin = np.concatenate([np.zeros(n), np.full(k, PACK_WALL_CLEARANCE)])
+        # The packs' placement discs already include half the pack gap.
+        pack_wall = max(0.0, C.PACK_RADIUS + PACK_WALL_CLEARANCE - _pack_placement_radius())
+        wall_margin = np.concatenate([np.zeros(n), np.full(k, pack_wall)])
         centres = place_discs(radii, C.FIELD_SIZE / 2, rng, wall_margin)
         yaw = rng.uniform(-math.pi, math.pi, size=n)
         for i in range(n):

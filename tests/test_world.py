@@ -182,3 +182,19 @@ def test_sixteen_robots_pile_up_without_overflow() -> None:
     w.set_wheel_speeds(np.full(16, 1.0), np.full(16, 1.0))
     w.step(1000)
     assert w.data.ncon >= 16 * 4 and np.all(w.uprightness() > 0.9)
+
+
+def test_packs_leave_room_to_turn_between_them() -> None:
+    """No two packs closer than PACK_GAP: a robot never gets jammed between two packs."""
+    from cyber_rodent.world import PACK_GAP
+
+    w = World(WorldConfig(n_robots=3, n_packs=6), np.random.default_rng(0))
+    for seed in range(50):
+        w.reset(np.random.default_rng(seed))
+        p = w.pack_positions()
+        gaps = [
+            np.hypot(*(p[i] - p[j])) - 2 * C.PACK_RADIUS
+            for i in range(len(p))
+            for j in range(i + 1, len(p))
+        ]
+        assert min(gaps) >= PACK_GAP - 1e-9
