@@ -170,7 +170,7 @@ def run(
         remove_stale_temporaries(checkpoints)
         runner = EvolutionRunner.from_checkpoint(newest, policies, expect=(run_config, seed))
     else:
-        if not resume and _holds_a_run(out):
+        if not resume and holds_a_run(out):
             raise ValueError(
                 f"out_dir {out} already holds a run ({RUN_FILE} or checkpoints); pass "
                 "resume=True to continue it, or choose an empty directory"
@@ -178,7 +178,7 @@ def run(
         runner = EvolutionRunner(run_config, seed, policies)
     with runner:
         out.mkdir(parents=True, exist_ok=True)
-        _write_json(out / RUN_FILE, _run_record(runner, generations))
+        _write_json(out / RUN_FILE, run_record(runner, generations))
 
         def write_results(r: EvolutionRunner) -> None:
             _write_atomic(out / STATISTICS_FILE, lambda p: r.statistics().to_csv(p, index=False))
@@ -194,15 +194,17 @@ def run(
         )
         _write_atomic(out / STATISTICS_FILE, lambda p: table.to_csv(p, index=False))
         _write_atomic(out / EVENTS_FILE, runner.events.write_csv)
-        _write_json(out / RUN_FILE, _run_record(runner, generations))
+        _write_json(out / RUN_FILE, run_record(runner, generations))
     return table
 
 
-def _holds_a_run(out: Path) -> bool:
+def holds_a_run(out: Path) -> bool:
+    """Does ``out`` already hold a run (a run record or a checkpoint)?"""
     return (out / RUN_FILE).exists() or latest_checkpoint(out / CHECKPOINT_DIR) is not None
 
 
-def _run_record(runner: EvolutionRunner, generations: int) -> dict[str, Any]:
+def run_record(runner: EvolutionRunner, generations: int) -> dict[str, Any]:
+    """The content of ``run.json``: config, seed, policies, target, versions, summary."""
     return {
         "config": dataclasses.asdict(runner.config),
         "seed": runner.seed,

@@ -35,7 +35,14 @@ from typing import Any
 import pandas as pd
 
 from behaviours import BehaviourPolicies
-from evolution.api import CHECKPOINT_DIR, OVERRIDES, RUN_FILE, STATISTICS_FILE, make_config
+from evolution.api import (
+    CHECKPOINT_DIR,
+    OVERRIDES,
+    RUN_FILE,
+    STATISTICS_FILE,
+    holds_a_run,
+    make_config,
+)
 from evolution.config import EvolutionConfig, GeneticConfig
 from evolution.runner import EvolutionRunner, latest_checkpoint, policy_identity
 
@@ -184,7 +191,7 @@ def prepare_out_dir(out: str | os.PathLike[str], *, resume: bool, force: bool) -
     if path.exists() and not path.is_dir():
         raise ValueError(f"--out {path} is a file, not a directory")
     non_empty = path.is_dir() and any(path.iterdir())
-    is_run = (path / RUN_FILE).exists() or latest_checkpoint(path / CHECKPOINT_DIR) is not None
+    is_run = holds_a_run(path)
     if resume:
         if not is_run:
             raise ValueError(f"--resume: {path} holds no run to continue")

@@ -36,9 +36,9 @@ import numpy as np
 import pandas as pd
 
 from cyber_rodent.profiles import HardwareProfile, apply_field, apply_vision
-from evolution.api import CHECKPOINT_DIR, EVENTS_FILE, RUN_FILE, STATISTICS_FILE
+from evolution.api import CHECKPOINT_DIR, EVENTS_FILE, RUN_FILE, STATISTICS_FILE, run_record
 from evolution.genome import Genome
-from evolution.runner import EvolutionRunner, RunConfig, list_checkpoints, policy_identity
+from evolution.runner import EvolutionRunner, RunConfig, list_checkpoints
 from evolution.scheduler import TimeSharingScheduler
 
 TRANSFER_FILE = "transfer.json"
@@ -297,14 +297,7 @@ def transfer(
 
 
 def _run_record(runner: EvolutionRunner, generations: int) -> dict[str, Any]:
-    return {
-        "config": dataclasses.asdict(runner.config),
-        "seed": runner.seed,
-        "policies": policy_identity(runner.policies),
-        "target_generations": generations,
-        "summary": runner.summary(),
-        "transfer": True,
-    }
+    return {**run_record(runner, generations), "transfer": True}
 
 
 __all__ = [
