@@ -34,6 +34,17 @@ from behaviours.episodes import (
 from behaviours.inputs import behaviour_index
 from behaviours.policies import CommandPolicy
 
+#: The issue's quality measures, as rows (behaviour, label, key of ``EvaluationResult.summary``,
+#: shown as a percentage): one definition for every benchmark table that reports them.
+MEASURES: tuple[tuple[str, str, str, bool], ...] = (
+    ("forage", "dock rate within 100 steps", "success_rate", True),
+    ("forage", "median steps to dock", "median_steps_to_goal", False),
+    ("mate", "IR exchange within 100 steps", "success_rate", True),
+    ("mate", "median steps to exchange", "median_steps_to_goal", False),
+    ("search", "contacts per 1000 steps", "contacts_per_1000_steps", False),
+    ("search", "area covered per episode m²", "area_covered_m2", False),
+)
+
 #: Offset between evaluation and training placement streams: evaluation episodes are never
 #: training episodes, whatever the seeds.
 EVALUATION_SEED_OFFSET = 1_000_003

@@ -40,7 +40,7 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 import numpy as np  # noqa: E402
 
 from behaviours import FORAGE, MATE, SEARCH, BehaviourPolicies, behaviour_inputs  # noqa: E402
-from behaviours.evaluation import evaluate  # noqa: E402
+from behaviours.evaluation import MEASURES, evaluate  # noqa: E402
 from behaviours.greedy_policy import GreedyPolicy  # noqa: E402
 from behaviours.inputs import BEHAVIOUR_NAMES  # noqa: E402
 from behaviours.training import train  # noqa: E402
@@ -145,15 +145,7 @@ def command_cost(repeats: int = 20_000) -> dict:
 
 def print_table(results: dict) -> None:
     print("\nbehaviour  measure                       learned     random    reactive")
-    rows = [
-        ("forage", "dock rate within 100 steps", "success_rate", True),
-        ("forage", "median steps to dock", "median_steps_to_goal", False),
-        ("mate", "IR exchange within 100 steps", "success_rate", True),
-        ("mate", "median steps to exchange", "median_steps_to_goal", False),
-        ("search", "contacts per 1000 steps", "contacts_per_1000_steps", False),
-        ("search", "area covered per episode m²", "area_covered_m2", False),
-    ]
-    for name, label, key, pct in rows:
+    for name, label, key, pct in MEASURES:
         r = results[name]
         cells = [_fmt(r[p][key], pct) for p in ("learned", "random", "reactive")]
         print(f"{name:10s} {label:28s} {cells[0]:>9s} {cells[1]:>10s} {cells[2]:>10s}")

@@ -33,19 +33,11 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 
 from behaviours import BehaviourPolicies  # noqa: E402
 from behaviours.episodes import BehaviourEpisode  # noqa: E402
-from behaviours.evaluation import evaluate  # noqa: E402
+from behaviours.evaluation import MEASURES, evaluate  # noqa: E402
 from behaviours.inputs import BEHAVIOUR_NAMES  # noqa: E402
 from cyber_rodent.profiles import PROFILE_PARTS, HardwareProfile  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "hardware_profile.json"
-MEASURES = (
-    ("forage", "dock rate within 100 steps", "success_rate", True),
-    ("forage", "median steps to dock", "median_steps_to_goal", False),
-    ("mate", "IR exchange within 100 steps", "success_rate", True),
-    ("mate", "median steps to exchange", "median_steps_to_goal", False),
-    ("search", "contacts per 1000 steps", "contacts_per_1000_steps", False),
-    ("search", "area covered per episode m²", "area_covered_m2", False),
-)
 
 
 def _fmt(x: float, pct: bool = False) -> str:
