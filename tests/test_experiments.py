@@ -115,8 +115,13 @@ def test_kill_mid_run_then_resume_is_identical(tmp_path: Path) -> None:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
+    # The statistics table is published just after each checkpoint, so wait for both: a kill
+    # between the two would leave nothing to compare below.
     deadline = time.monotonic() + 240
-    while not list((killed / "checkpoints").glob("gen_00001.ckpt")):
+    while not (
+        list((killed / "checkpoints").glob("gen_00001.ckpt"))
+        and (killed / "statistics.csv").exists()
+    ):
         assert proc.poll() is None, "the run ended before it could be killed"
         assert time.monotonic() < deadline
         time.sleep(0.05)
