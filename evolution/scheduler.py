@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,6 +56,38 @@ from evolution.stats import StatisticsRecorder
 
 #: ``mated_with`` value for "no mating this step" (as in the survival world's events).
 NO_PARTNER = -1
+
+#: Generations whose completed lives :attr:`TimeSharingScheduler.completed_lives` keeps: the
+#: newest two, so a checkpoint written when a generation closes still holds that generation's
+#: lives (what :func:`evolution.transfer.fittest_individuals` ranks) without the state growing
+#: over a long run.
+LIFE_RECORD_GENERATIONS = 2
+
+
+@dataclass(frozen=True)
+class LifeRecord:
+    """One agent that lived the full lifetime: who it was and how it did.
+
+    The agent itself is replaced by its offspring as soon as its life ends, so this is the
+    only place its genome and final record survive ("the fittest individuals of generation
+    40" are agents that lived in generation 40, not the newborns that replaced them).
+
+    Attributes:
+        generation: the generation of its slot when it lived.
+        robot, slot: where it lived.
+        genome: its controller weights.
+        batteries: batteries captured in its life.
+        matings: matings in its life.
+        fitness: batteries / (lifetime / 100), the paper's fitness.
+    """
+
+    generation: int
+    robot: int
+    slot: int
+    genome: Genome
+    batteries: int
+    matings: int
+    fitness: float
 
 
 class TimeSharingScheduler:
@@ -79,6 +112,8 @@ class TimeSharingScheduler:
         slot_generation: (n_robots, k) generation counter of each slot.
         steps: control steps processed.
         stats: the per-generation statistics.
+        completed_lives: generation -> :class:`LifeRecord` of each agent that completed its
+            lifetime in it, for the newest :data:`LIFE_RECORD_GENERATIONS` generations.
         birth_log: ``(step, robot, slot, generation, origin)`` of every agent created since the
             log was last emptied (the initial population is not logged). A runner drains it
             into its event log after each step; it is part of the picklable state.
@@ -115,6 +150,7 @@ class TimeSharingScheduler:
         self.stats = StatisticsRecorder()
         self.steps = 0
         self.birth_log: list[tuple[int, int, int, int, int]] = []
+        self.completed_lives: dict[int, list[LifeRecord]] = {}
 
         self.active_slot = np.zeros(n, dtype=np.intp)
         self.active = np.ones(n, dtype=bool)
@@ -253,8 +289,23 @@ class TimeSharingScheduler:
             self._on_death(robot, slot)
         elif agent.age >= self.config.lifetime_steps:
             self.stats.record_full_life(generation, agent.batteries, agent.matings, robot)
+            self._record_life(generation, robot, slot, agent)
             self._on_full_life(robot, slot)
         self._advance(robot)
+
+    def _record_life(self, generation: int, robot: int, slot: int, agent: VirtualAgent) -> None:
+        lives = self.__dict__.setdefault("completed_lives", {})  # absent in older checkpoints
+        record = LifeRecord(
+            generation, robot, slot, agent.genome, agent.batteries, agent.matings,
+            agent.fitness(self.config.fitness_time_unit),
+        )  # fmt: skip
+        lives.setdefault(generation, []).append(record)
+        while len(lives) > LIFE_RECORD_GENERATIONS:
+            del lives[min(lives)]
+
+    def lives_of(self, generation: int) -> list[LifeRecord]:
+        """The recorded full lives of ``generation`` (empty if none, or no longer kept)."""
+        return list(self.__dict__.get("completed_lives", {}).get(generation, []))
 
     # --- moving counters between the per-robot arrays and the agent objects --------------
     def _store(self, robot: int) -> VirtualAgent:

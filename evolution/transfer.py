@@ -8,9 +8,12 @@ behaviours slower and one robot weaker. :func:`transfer` does the same in simula
 1. read the source run's checkpoint of the requested generation (``gen_NNNNN.ckpt`` is written
    when that many generations have completed; run the source with ``--keep-checkpoints 0`` so
    that every generation's checkpoint is kept);
-2. rank the population living at that moment (every virtual agent of every robot) by the
-   paper's fitness, batteries / (time lived / 100) of the record so far, agents that have mated
-   first (an unmated agent cannot reproduce, so the paper scores it 0), and take the ``top``;
+2. rank the agents that lived the full lifetime in the last generation that closed (the
+   checkpoint ``gen_00040`` is written when generation index 39, the 40th, closes) by the
+   paper's fitness over their whole life, batteries / (lifetime / 100), and take the ``top``.
+   Those agents have already been replaced by their offspring, so the scheduler keeps their
+   records (:attr:`~evolution.scheduler.TimeSharingScheduler.completed_lives`); a checkpoint
+   from before that record existed falls back to the living agents, mated ones first;
 3. seed every robot's ``agents_per_robot`` slots with those individuals in rank order
    (cycling if there are more slots than individuals), the world built with the profile;
 4. run ``generations`` generations of the same method and write a run directory with
@@ -120,7 +123,7 @@ class Individual:
 
     Attributes:
         genome: its controller weights.
-        fitness: batteries / (age / 100) of its record at the source generation.
+        fitness: batteries / (age / 100) of its record (its whole life, for a completed life).
         mated: it had mated at least once.
         robot, slot: where it lived in the source run.
     """
@@ -132,24 +135,57 @@ class Individual:
     slot: int
 
 
-def fittest_individuals(scheduler: TimeSharingScheduler, top: int) -> list[Individual]:
-    """The ``top`` fittest agents of the living population, mated agents first.
+def fittest_individuals(
+    scheduler: TimeSharingScheduler, top: int, generation: int | None = None
+) -> list[Individual]:
+    """The ``top`` fittest individuals of ``generation``, or of the living population.
 
-    Ties keep the robot-major slot order, so the choice is deterministic.
+    With ``generation``, the agents that completed their lifetime in it are ranked by the
+    paper's fitness over their whole life (ties: more matings first, then the order in which
+    the lives ended). This is what "the fittest individuals of generation 40" means: when a
+    generation closes, most of its agents have already been replaced by their newborn
+    offspring, whose records are still empty. The scheduler keeps the lives of its newest
+    generations (:attr:`~evolution.scheduler.TimeSharingScheduler.completed_lives`).
+
+    Without ``generation`` (or for a checkpoint written before lives were recorded), every
+    living agent is ranked by its record so far, agents that have mated first; ties keep the
+    robot-major slot order.
+
+    Raises:
+        ValueError: ``top`` is not in [1, number of candidates].
     """
     top = _count("top", top, 1)
-    unit = scheduler.config.fitness_time_unit
-    agents = []
-    for robot in range(scheduler.n_robots):
-        for slot in range(scheduler.subpopulation_size):
-            agent = scheduler.agent(robot, slot)
-            agents.append(
-                Individual(agent.genome, agent.fitness(unit), agent.matings > 0, robot, slot)
-            )
-    if top > len(agents):
-        raise ValueError(f"top must be in [1, {len(agents)}] (the population), got {top}")
-    order = sorted(range(len(agents)), key=lambda i: (not agents[i].mated, -agents[i].fitness, i))
-    return [agents[i] for i in order[:top]]
+    lives = scheduler.lives_of(generation) if generation is not None else []
+    if lives:
+        order = sorted(range(len(lives)), key=lambda i: (-lives[i].fitness, -lives[i].matings, i))
+        candidates = [
+            Individual(life.genome, life.fitness, life.matings > 0, life.robot, life.slot)
+            for life in (lives[i] for i in order)
+        ]
+        what = f"completed lives of generation {generation}"
+    else:
+        unit = scheduler.config.fitness_time_unit
+        agents = []
+        for robot in range(scheduler.n_robots):
+            for slot in range(scheduler.subpopulation_size):
+                agent = scheduler.agent(robot, slot)
+                agents.append(
+                    Individual(agent.genome, agent.fitness(unit), agent.matings > 0, robot, slot)
+                )
+        order = sorted(
+            range(len(agents)), key=lambda i: (not agents[i].mated, -agents[i].fitness, i)
+        )
+        candidates = [agents[i] for i in order]
+        what = "the population"
+    if top > len(candidates):
+        raise ValueError(f"top must be in [1, {len(candidates)}] ({what}), got {top}")
+    return candidates[:top]
+
+
+def ranked_generation(checkpoint_generation: int) -> int | None:
+    """The generation whose lives a checkpoint ``gen_NNNNN`` ranks: the last one that closed
+    (N - 1, 0-based), or None for the initial checkpoint."""
+    return checkpoint_generation - 1 if checkpoint_generation > 0 else None
 
 
 def robot_statistics(runner: EvolutionRunner) -> pd.DataFrame:
@@ -230,8 +266,11 @@ def transfer(
     if (dst / RUN_FILE).exists() or list_checkpoints(dst / CHECKPOINT_DIR):
         raise ValueError(f"--out {dst} already holds a run; choose an empty directory")
     policies = policies_for_identity(record["policies"])
+    ranked = ranked_generation(generation)
     with EvolutionRunner.from_checkpoint(checkpoint, policies) as source_runner:
-        chosen = fittest_individuals(source_runner.scheduler, top)
+        chosen = fittest_individuals(source_runner.scheduler, top, ranked)
+        if ranked is not None and not source_runner.scheduler.lives_of(ranked):
+            ranked = None  # an older checkpoint: the living population was ranked
         base = source_runner.config
     config = hardware_run_config(base, profile, robots=robots, agents_per_robot=agents_per_robot)
     genomes = [
@@ -244,6 +283,11 @@ def transfer(
             "source": str(src.resolve()),
             "source_checkpoint": checkpoint.name,
             "source_generation": generation,
+            "ranked": (
+                f"lives completed in generation {ranked} (0-based)"
+                if ranked is not None
+                else "the population living at the checkpoint"
+            ),
             "individuals": [
                 {
                     "fitness": i.fitness,

@@ -227,6 +227,32 @@ def test_offspring_from_the_fittest_partner_and_spare_list_before_random() -> No
     assert ee.agent(0, 0).origin is Origin.RANDOM
 
 
+def test_completed_lives_are_recorded_with_their_genome_and_fitness() -> None:
+    """Agents are replaced by their offspring when their life ends, so the scheduler keeps
+    each completed life (what transfer ranks); only the newest generations are kept."""
+    ee = EmbodiedEvolution(_small(), np.random.default_rng(0), _numbered(4))
+    _step(ee, captured=(0,))  # step 1: robot 0's slot-0 agent captures a battery
+    _step(ee, mated=((0, 1),))  # step 2: the slot-0 agents mate
+    _step(ee)
+    _step(ee, mated=((0, 1),))  # step 4: the slot-1 agents mate
+    _run(ee, 4)  # steps 5-8: every agent completes its 4-step life
+    lives = ee.lives_of(0)
+    assert [(life.robot, life.slot) for life in lives] == [(0, 0), (1, 0), (0, 1), (1, 1)]
+    # Robot 0 slot 0: 1 battery in a 4-step life -> 1 / (4 / 100) = 25; the others caught none.
+    assert [life.fitness for life in lives] == [25.0, 0.0, 0.0, 0.0]
+    assert [(life.batteries, life.matings) for life in lives] == [(1, 1), (0, 1), (0, 1), (0, 1)]
+    assert [life.genome for life in lives] == [_genome(0.0), _genome(2.0), _genome(1.0),
+                                               _genome(3.0)]  # fmt: skip
+    assert all(life.generation == 0 for life in lives)
+    assert ee.agent(0, 0).genome != _genome(0.0)  # the living agent is its offspring
+    _run(ee, 16)  # generations 1 and 2
+    assert sorted(ee.completed_lives) == [1, 2]  # generation 0's records were dropped
+    assert ee.lives_of(0) == []
+    assert len(ee.lives_of(2)) == 4
+    restored = pickle.loads(pickle.dumps(ee))
+    assert restored.lives_of(2) == ee.lives_of(2)
+
+
 def test_statistics_hand_computed() -> None:
     # 2 robots x 1 agent, lifetime 4, time share 2; no crossover and no mutation so the
     # offspring are hand-predictable.

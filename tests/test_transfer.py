@@ -71,6 +71,41 @@ def test_fittest_individuals_rank_mated_agents_first() -> None:
         fittest_individuals(scheduler, 5)
 
 
+def test_fittest_individuals_of_a_generation_rank_its_completed_lives() -> None:
+    config = EvolutionConfig(population_size=4, n_robots=2, lifetime_steps=4, time_sharing_steps=2)
+    genomes = [Genome(np.full(39, float(i))) for i in range(4)]
+    scheduler = EmbodiedEvolution(config, np.random.default_rng(0), genomes)
+    n = 2
+
+    def step(captured=(), mated=False) -> None:
+        partner = np.array([1, 0]) if mated else np.full(n, -1)
+        mask = np.zeros(n, dtype=bool)
+        mask[list(captured)] = True
+        scheduler.on_step(np.full(n, 100.0), np.zeros(n, dtype=bool), mask, partner)
+
+    # Slot-0 agents: robot 1 captures twice (steps 1 and 5), robot 0 once (step 5); slot-1
+    # agents: robot 0 captures once (step 3) and both mate (step 4).
+    step(captured=(1,))
+    step()
+    step(captured=(0,))
+    step(mated=True)
+    step(captured=(0, 1))
+    step()
+    step()
+    step()
+    # Fitness over 4-step lives: robot 1 slot 0: 2 / 0.04 = 50; robot 0 slot 0: 25;
+    # robot 0 slot 1: 25 with one mating (wins the tie); robot 1 slot 1: 0.
+    chosen = fittest_individuals(scheduler, 3, generation=0)
+    assert [(c.robot, c.slot) for c in chosen] == [(1, 0), (0, 1), (0, 0)]
+    assert [c.fitness for c in chosen] == [50.0, 25.0, 25.0]
+    assert [c.mated for c in chosen] == [False, True, False]
+    assert chosen[0].genome == genomes[2]  # robot-major: robot 1, slot 0
+    # The living agents are the newborns; without a generation they are what is ranked.
+    assert all(c.fitness == 0.0 for c in fittest_individuals(scheduler, 4))
+    with pytest.raises(ValueError, match=r"top must be in \[1, 4\] \(completed lives"):
+        fittest_individuals(scheduler, 5, generation=0)
+
+
 def test_hardware_run_config_is_consistent() -> None:
     base = RunConfig(evolution=EvolutionConfig(population_size=100, n_robots=4))
     config = hardware_run_config(base, HardwareProfile(), robots=3, agents_per_robot=5)

@@ -24,7 +24,11 @@ def main(argv: list[str] | None = None) -> int:
     from evolution.api import CHECKPOINT_DIR
     from evolution.experiment import policies_for_identity, read_run_record
     from evolution.runner import EvolutionRunner, latest_checkpoint
-    from evolution.transfer import checkpoint_of_generation, fittest_individuals
+    from evolution.transfer import (
+        checkpoint_of_generation,
+        fittest_individuals,
+        ranked_generation,
+    )
 
     try:
         record = read_run_record(args.source)
@@ -36,7 +40,8 @@ def main(argv: list[str] | None = None) -> int:
             checkpoint = checkpoint_of_generation(args.source, args.generation)
         policies = policies_for_identity(record["policies"])
         with EvolutionRunner.from_checkpoint(checkpoint, policies) as runner:
-            chosen = fittest_individuals(runner.scheduler, args.top)
+            generation = int(checkpoint.stem.split("_")[1])
+            chosen = fittest_individuals(runner.scheduler, args.top, ranked_generation(generation))
             evo = runner.config.evolution
         provenance = {
             "run": str(args.source),
