@@ -404,7 +404,7 @@ def plot_run_dir(path: str | os.PathLike[str]) -> list[Path]:
     Raises:
         ValueError: no statistics found under ``path``.
     """
-    from evolution.figures import plot_fig6
+    from evolution.figures import plot_fig6, summarise_runs
     from evolution.sweep import load_sweep
 
     root = Path(path)
@@ -414,7 +414,11 @@ def plot_run_dir(path: str | os.PathLike[str]) -> list[Path]:
     written = []
     non_empty = {m: [t for t in tables if len(t)] for m, tables in runs.items()}
     if any(non_empty.values()):
-        written += plot_fig6({m: t for m, t in non_empty.items() if t}, root / FIGURES_DIR / "fig6")
+        chosen = {m: t for m, t in non_empty.items() if t}
+        written += plot_fig6(chosen, root / FIGURES_DIR / "fig6")
+        summary = root / FIGURES_DIR / "fig6_summary.csv"
+        summarise_runs(chosen).to_csv(summary, index=False, float_format="%.4g")
+        written.append(summary)
     return written
 
 

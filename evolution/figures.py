@@ -13,6 +13,7 @@ had no agent complete the task contributes nothing for that run (NaN is skipped)
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -76,6 +77,51 @@ def aggregate_runs(tables: Sequence[pd.DataFrame], column: str) -> pd.DataFrame:
         mean = np.nanmean(values, axis=1)
         std = np.nanstd(values, axis=1)
     return pd.DataFrame({"mean": mean, "std": std, "runs": counts}, index=wide.index)
+
+
+def summarise_runs(
+    runs_by_method: Mapping[str, Sequence[pd.DataFrame]], window: int = 5
+) -> pd.DataFrame:
+    """The numbers a results table quotes: per method, at the last generation every run
+    reached and averaged over the last ``window`` such generations.
+
+    Each run's own mean first (over its generations in the window), then mean and population
+    std over runs, so a run counts once whatever its length.
+
+    Args:
+        runs_by_method: e.g. ``{"ee": [table_seed0, ...], "ce": [...]}``.
+        window: generations in the late average (the paper's curves are noisy per generation).
+
+    Returns:
+        One row per method and ``span`` (``"last"`` or ``"last {window}"``) with columns
+        ``method``, ``span``, ``generations`` (e.g. ``"35-39"``), ``runs``, and mean/std over
+        runs of ``batteries_mean``, ``matings_mean`` and ``completed``.
+    """
+    if isinstance(window, bool) or not isinstance(window, int) or window < 1:
+        raise ValueError(f"window must be an integer in [1, ∞), got {window!r}")
+    rows = []
+    for method, tables in runs_by_method.items():
+        tables = [t for t in tables if len(t)]
+        if not tables:
+            continue
+        last = min(int(t["generation"].max()) for t in tables)
+        for span, first in (("last", last), (f"last {window}", max(0, last - window + 1))):
+            row: dict[str, object] = {
+                "method": method,
+                "span": span,
+                "generations": f"{first}" if first == last else f"{first}-{last}",
+                "runs": len(tables),
+            }
+            for column in ("batteries_mean", "matings_mean", "completed"):
+                per_run = [
+                    float(np.nanmean(t.loc[t["generation"].between(first, last), column]))
+                    for t in tables
+                    if column in t.columns
+                ]
+                row[f"{column}_mean"] = float(np.mean(per_run)) if per_run else math.nan
+                row[f"{column}_std"] = float(np.std(per_run)) if per_run else math.nan
+            rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def _save(fig, out_base: Path) -> list[Path]:

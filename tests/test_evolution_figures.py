@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from evolution.figures import aggregate_runs, plot_fig6, plot_per_robot
+from evolution.figures import aggregate_runs, plot_fig6, plot_per_robot, summarise_runs
 
 
 def table(batteries, matings) -> pd.DataFrame:
@@ -40,6 +40,22 @@ def test_aggregate_runs_errors() -> None:
         aggregate_runs([], "batteries_mean")
     with pytest.raises(ValueError, match="lacks"):
         aggregate_runs([pd.DataFrame({"generation": [0]})], "batteries_mean")
+
+
+def test_summarise_runs_hand_computed() -> None:
+    a = table([1.0, 2.0, 4.0, 6.0], [1.0, 1.0, 2.0, 2.0])
+    b = table([3.0, 4.0, 8.0], [1.0, 3.0, 4.0])  # shorter: the last common generation is 2
+    summary = summarise_runs({"ee": [a, b]}, window=2).set_index("span")
+    last, late = summary.loc["last"], summary.loc["last 2"]
+    assert last["generations"] == "2" and late["generations"] == "1-2"
+    assert last["runs"] == 2
+    # Generation 2: batteries 4 and 8 -> mean 6, population std 2; matings 2 and 4 -> 3, 1.
+    assert (last["batteries_mean_mean"], last["batteries_mean_std"]) == (6.0, 2.0)
+    assert (last["matings_mean_mean"], last["matings_mean_std"]) == (3.0, 1.0)
+    # Generations 1-2: run a (2 + 4) / 2 = 3, run b (4 + 8) / 2 = 6 -> mean 4.5, std 1.5.
+    assert (late["batteries_mean_mean"], late["batteries_mean_std"]) == (4.5, 1.5)
+    with pytest.raises(ValueError, match="window must be"):
+        summarise_runs({"ee": [a]}, window=0)
 
 
 def test_plot_fig6_writes_png_and_pdf(tmp_path) -> None:

@@ -71,6 +71,8 @@ def test_evolve_plot_render(tmp_path: Path) -> None:
     image = iio.imread(out / "figures" / "fig6.png")
     assert image.ndim == 3 and image.shape[0] > 200
     assert (out / "figures" / "fig6.pdf").read_bytes().startswith(b"%PDF")
+    summary = pd.read_csv(out / "figures" / "fig6_summary.csv")
+    assert summary["span"].tolist() == ["last", "last 5"] and (summary["runs"] == 1).all()
 
     before = sorted(p.name for p in out.rglob("*"))
     video = tmp_path / "run.mp4"
