@@ -20,6 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
+from behaviours import greedy_kernel
 from behaviours.definitions import load_values
 from behaviours.greedy_policy import GreedyPolicy
 from behaviours.inputs import BEHAVIOUR_NAMES, N_BEHAVIOURS, BehaviourInputs
@@ -64,6 +65,16 @@ class _FusedGreedy:
         # Lookup entries already shifted to the behaviour's rows of the stacked weight table.
         self.lookup = np.concatenate([c._lookup + table_base[i] for i, c in enumerate(coders)])
         self.table = np.concatenate([p._table for p in policies])  # (sum tables, n_actions)
+        self._count2 = np.ascontiguousarray(self.count[:, 0, :], dtype=np.int64)  # (B, dims)
+        self._strides2 = np.ascontiguousarray(self.strides[:, 0, :], dtype=np.int64)
+
+    def act_compiled(self, behaviour: np.ndarray, inputs: BehaviourInputs, out: np.ndarray) -> int:
+        """:meth:`act` for every robot in one compiled call (:mod:`behaviours.greedy_kernel`);
+        returns its status code."""
+        return greedy_kernel.act(
+            behaviour, inputs.mate, inputs.forage, inputs.search, self.scale, self.offsets,
+            self._count2, self._strides2, self.base, self.lookup, self.table, out,
+        )  # fmt: skip
 
     def act(self, behaviour: np.ndarray, states: np.ndarray) -> np.ndarray:
         if states.size and not (states.min() >= 0.0 and states.max() <= 1.0):
@@ -101,6 +112,8 @@ class BehaviourPolicies:
             except ValueError:
                 self._fused = None
         self._rows = np.arange(0)
+        #: The fused greedy policies run compiled (:mod:`behaviours.greedy_kernel`).
+        self._compiled = self._fused is not None and greedy_kernel.AVAILABLE
 
     @classmethod
     def load_default(cls) -> BehaviourPolicies:
@@ -143,6 +156,13 @@ class BehaviourPolicies:
         n = inputs.n_robots
         if behaviour.shape != (n,):
             raise ValueError(f"behaviour: expected shape ({n},), got {behaviour.shape}")
+        if self._compiled and out is not None and out.dtype == np.int64:
+            status = self._fused.act_compiled(behaviour, inputs, out)
+            if status == greedy_kernel.OK:
+                return out
+            if status == greedy_kernel.BAD_STATE:
+                raise ValueError("states: every behaviour input must be in [0, 1] (no NaN)")
+            # BAD_BEHAVIOUR: the message below names the indices.
         if n and (behaviour.min() < 0 or behaviour.max() >= N_BEHAVIOURS):
             raise ValueError(
                 f"behaviour: indices must be in [0, {N_BEHAVIOURS}) (mate, forage, search), got "

@@ -308,6 +308,12 @@ class World:
         """Advance the physics by ``n_substeps`` timesteps."""
         mujoco.mj_step(self.model, self.data, nstep=n_substeps)
 
+    @property
+    def range_sensordata(self) -> np.ndarray:
+        """(n_robots, 8) live view of the rangefinders' raw ``sensordata`` (-1: no hit), for
+        hot loops that saturate the readings themselves (see :meth:`range_readings`)."""
+        return self._ranges_raw
+
     def range_readings(self, out: np.ndarray | None = None) -> np.ndarray:
         """(n_robots, 8) distances in metres, sensor order of ``constants.RANGE_SENSORS``.
 

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from evolution import controller_kernel
 from evolution.config import GENOME_LENGTH
 from evolution.genome import RECHARGE, SELECTION
 
@@ -180,6 +181,42 @@ class NeuralController:
         np.argmax(masked, axis=1, out=self.behaviour)
         np.greater(act[:, MATE], act[:, FORAGE], out=self.led)
         return self.behaviour, self.led
+
+    def decide(
+        self,
+        weights: np.ndarray,
+        energy: np.ndarray,
+        proximity: np.ndarray,
+        face_distance: np.ndarray,
+        led_distance: np.ndarray,
+        battery_distance: np.ndarray,
+        led_previous: np.ndarray,
+        mate_available: np.ndarray,
+        forage_available: np.ndarray,
+        steps_recharged: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`fill_inputs`, :meth:`select` and :meth:`continue_recharge` in one call.
+
+        What the evolution runner calls every step: one compiled call
+        (:mod:`evolution.controller_kernel`) where numba is available, else the three
+        methods. Arguments as theirs.
+
+        Returns:
+            ``(behaviour, led, continue_recharge)``, this controller's buffers.
+        """
+        if not controller_kernel.AVAILABLE:  # pragma: no cover - numba is a dependency
+            self.fill_inputs(
+                energy, proximity, face_distance, led_distance, battery_distance, led_previous
+            )
+            behaviour, led = self.select(weights, mate_available, forage_available)
+            return behaviour, led, self.continue_recharge(weights, energy, steps_recharged)
+        controller_kernel.decide(
+            weights, RECHARGE.start, SELECTION.start, energy, proximity, face_distance,
+            led_distance, battery_distance, led_previous, mate_available, forage_available,
+            steps_recharged, self.max_energy, self.max_recharge_steps, self.inputs,
+            self.activations, self.behaviour, self.led, self._continue,
+        )  # fmt: skip
+        return self.behaviour, self.led, self._continue
 
     def continue_recharge(
         self, weights: np.ndarray, energy: np.ndarray, steps_recharged: np.ndarray

@@ -111,6 +111,45 @@ def test_commands_of_learned_policies_match_each_policy(learned):
         np.testing.assert_array_equal(out[rows], learned.policies[b].act(inputs.of(b)[rows]))
 
 
+def test_compiled_commands_equal_the_numpy_path(learned):
+    """The compiled kernel (used when an int64 ``out`` buffer is given, as the runner does)
+    chooses exactly what the numpy path and each policy choose, on random inputs, on the
+    edges 0 and 1, and on tile boundaries; bad input is refused the same way."""
+    from behaviours import greedy_kernel
+    from behaviours.inputs import BehaviourInputs
+
+    if not greedy_kernel.AVAILABLE:
+        pytest.skip("numba is not installed")
+    assert learned._compiled
+    rng = np.random.default_rng(11)
+    n = 500
+    grid = np.linspace(0.0, 1.0, 41)  # many exact tile boundaries
+    values = [rng.random((n, 2)), rng.choice(grid, size=(n, 2))]
+    for mate, forage in zip(values, values[::-1], strict=True):
+        inputs = BehaviourInputs(
+            mate=mate,
+            forage=forage,
+            search=np.sort(mate, axis=1)[:, ::-1].copy(),
+            mate_available=np.ones(n, dtype=bool),
+            forage_available=np.ones(n, dtype=bool),
+        )
+        behaviour = rng.integers(3, size=n)
+        compiled = learned.commands(behaviour, inputs, out=np.full(n, -1, dtype=np.int64))
+        np.testing.assert_array_equal(compiled, learned.commands(behaviour, inputs))
+        for b in range(3):
+            rows = behaviour == b
+            expected = learned.policies[b].act(inputs.of(b)[rows])
+            np.testing.assert_array_equal(compiled[rows], expected)
+    bad = BehaviourInputs(
+        mate=np.array([[0.5, np.nan]]), forage=np.zeros((1, 2)), search=np.zeros((1, 2)),
+        mate_available=np.ones(1, dtype=bool), forage_available=np.ones(1, dtype=bool),
+    )  # fmt: skip
+    with pytest.raises(ValueError, match=r"must be in \[0, 1\] \(no NaN\)"):
+        learned.commands(np.array([0]), bad, out=np.zeros(1, dtype=np.int64))
+    with pytest.raises(ValueError, match=r"indices must be in \[0, 3\)"):
+        learned.commands(np.array([3]), bad, out=np.zeros(1, dtype=np.int64))
+
+
 def test_exported_shipped_policies_act_like_numpy(tmp_path):
     torch = pytest.importorskip("torch")
     from behaviours.export import export_behaviour_policies, load_exported_policy

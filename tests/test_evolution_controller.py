@@ -181,3 +181,32 @@ def test_bad_constructor_arguments() -> None:
         NeuralController(1, max_energy=0.0)
     with pytest.raises(ValueError, match="max_recharge_steps"):
         NeuralController(1, max_recharge_steps=0)
+
+
+def test_decide_equals_fill_select_and_recharge() -> None:
+    """The runner's one-call :meth:`NeuralController.decide` (compiled) makes the same
+    decisions as the three numpy methods, on random agents and inputs, including the
+    hand-made ties the tie rules are about."""
+    rng = np.random.default_rng(5)
+    n = 4
+    fused, reference = NeuralController(n), NeuralController(n)
+    for trial in range(3000):
+        w = rng.uniform(-1, 1, (n, GENOME_LENGTH))
+        if trial % 10 == 0:  # exact ties between outputs (and zero activations)
+            w[:, 3:] = np.round(w[:, 3:]) * (rng.random((n, 36)) < 0.2)
+        energy = rng.uniform(0, 200, n)
+        proximity = rng.uniform(0, 1, (n, 6))
+        face, led_d, battery = rng.uniform(0, 1, (3, n))
+        led_previous = rng.random(n) < 0.5
+        mate_ok, forage_ok = rng.random((2, n)) < 0.5
+        steps = rng.integers(0, 41, n)
+        behaviour, led, proceed = fused.decide(
+            w, energy, proximity, face, led_d, battery, led_previous, mate_ok, forage_ok, steps
+        )
+        reference.fill_inputs(energy, proximity, face, led_d, battery, led_previous)
+        expected_behaviour, expected_led = reference.select(w, mate_ok, forage_ok)
+        np.testing.assert_array_equal(fused.inputs, reference.inputs)
+        np.testing.assert_allclose(fused.activations, reference.activations, atol=1e-14)
+        np.testing.assert_array_equal(behaviour, expected_behaviour)
+        np.testing.assert_array_equal(led, expected_led)
+        np.testing.assert_array_equal(proceed, reference.continue_recharge(w, energy, steps))

@@ -39,6 +39,7 @@ def _check_equal(perception: Perception, frame, world: World) -> None:
     np.testing.assert_array_equal(perception.bearing, frame.bearing)
     np.testing.assert_array_equal(perception.distance, frame.distance)
     ranges = world.range_readings()
+    np.testing.assert_array_equal(perception.ranges, ranges)
     expected = behaviour_inputs(frame, ranges, world.range_max)
     got = perception.inputs
     for name in ("mate", "forage", "search", "mate_available", "forage_available"):

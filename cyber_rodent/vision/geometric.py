@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from cyber_rodent.vision import geometric_kernel
 from cyber_rodent.vision.config import CameraConfig
 from cyber_rodent.vision.detections import apply_noise, frame_from_detections
 from cyber_rodent.vision.projection import OmniProjection
@@ -51,6 +52,8 @@ _LED_SAMPLES = ((-0.6, 0.0), (0.0, 0.0), (0.6, 0.0))
 #: Geom groups that are rendered (mjvOption's default), hence able to hide a target.
 _VISIBLE_GROUPS = np.array([1, 1, 1, 0, 0, 0], dtype=np.uint8)
 _EDGE_CLIP = 0.5 * math.pi - 1e-3  # rad, keep tan() finite for targets beside the camera
+#: Implementations of the hot path: "auto" (compiled if available), "compiled", "numpy".
+BACKENDS = ("auto", "compiled", "numpy")
 
 
 @dataclass
@@ -106,7 +109,17 @@ class GeometricVision:
         world: World,
         config: CameraConfig | None = None,
         rng: np.random.Generator | None = None,
+        backend: str = "auto",
     ):
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+        if backend == "compiled" and not geometric_kernel.AVAILABLE:
+            raise ValueError(
+                "backend 'compiled' is unavailable: " + geometric_kernel.unavailable_reason()
+            )
+        #: "compiled" (the numba kernel, :mod:`~cyber_rodent.vision.geometric_kernel`) or
+        #: "numpy" (the reference implementation).
+        self.backend = "compiled" if backend != "numpy" and geometric_kernel.AVAILABLE else "numpy"
         self.world = world
         self.config = config or CameraConfig()
         if self.config.noise.enabled and rng is None:
@@ -178,6 +191,7 @@ class GeometricVision:
         self._inv_list = self._inv_samples.tolist()
         self._s_geom_list = self._s_geom.tolist()
         self._ray_one = np.zeros(1, dtype=np.int32)
+        self._kernel_setup()
 
     def close(self) -> None:
         """Nothing to release (symmetry with the rendered provider)."""
@@ -275,7 +289,15 @@ class GeometricVision:
                 LED, FACE, BATTERY).
             visible: (n_robots, 3) bool buffer, filled in place.
         """
-        f = self._front()
+        if self.backend == "compiled":
+            m, d = self.world.model, self.world.data
+            self._gather()
+            geometric_kernel.nearest(
+                m._address, d._address, *self._kernel_poses, self.world.led_on,
+                *self._kernel_rest, *self._kernel_nearest_tail, bearing, distance, visible,
+            )  # fmt: skip
+            return
+        f = self._front_numpy()
         m, d = self.world.model, self.world.data
         n_targets = len(self.target_cls)
         masked = self._lazy_masked
@@ -328,7 +350,90 @@ class GeometricVision:
 
     def _front(self) -> _Front:
         """Everything before the ray casts, shared by :meth:`measure_targets` and
-        :meth:`nearest_targets` so that both compute bit-identical numbers."""
+        :meth:`nearest_targets` so that both compute bit-identical numbers (fresh arrays)."""
+        if self.backend == "numpy":
+            return self._front_numpy()
+        k = self._kernel
+        self._gather()
+        geometric_kernel.front(*self._kernel_poses, self.world.led_on, *self._kernel_rest)
+        rays, sample_ok = k["rays"].copy(), k["sample_ok"].copy()
+        return _Front(
+            k["cam"].copy(), k["local"].copy(), k["bearing"].copy(), k["distance"].copy(),
+            k["width_px"].copy(), k["height_px"].copy(), k["half_angle"].copy(),
+            k["full_area"].copy(), k["candidate"].copy(), rays, sample_ok,
+        )  # fmt: skip
+
+    def _kernel_setup(self) -> None:
+        """Constant inputs and reused buffers of the compiled kernel."""
+        if self.backend != "compiled":
+            return
+        n, n_targets, n_samples = self.n_robots, len(self.target_geom), len(self._s_target)
+        proj = self.projection
+        scalars = np.zeros(12)
+        scalars[:10] = (
+            self.config.max_range, proj.view_span, self.config.n_views, proj.px_per_u,
+            proj.px_per_v, proj.v_top, proj.v_bottom, self._tan_el_min, self._tan_el_max,
+            _EDGE_CLIP,
+        )  # fmt: skip
+        k: dict[str, np.ndarray] = {
+            "cam": np.zeros((n, 3)),
+            "rot": np.zeros((n, 9)),
+            "centre": np.zeros((n_targets, 3)),
+            "gmat": np.zeros((n_targets, 9)),
+            "local": np.zeros((n, n_targets, 3)),
+            "bearing": np.zeros((n, n_targets)),
+            "distance": np.zeros((n, n_targets)),
+            "width_px": np.zeros((n, n_targets)),
+            "height_px": np.zeros((n, n_targets)),
+            "half_angle": np.zeros((n, n_targets)),
+            "full_area": np.zeros((n, n_targets)),
+            "candidate": np.zeros((n, n_targets), dtype=np.bool_),
+            "diff": np.zeros((n, n_targets, 3)),
+            "lateral": np.zeros((n, n_targets, 3)),
+            "rays": np.zeros((n, n_samples, 3)),
+            "sample_ok": np.zeros((n, n_samples), dtype=np.bool_),
+        }
+        self._kernel = k
+        consts = (
+            np.ascontiguousarray(self._own), np.ascontiguousarray(self._plate, dtype=np.bool_),
+            self._half_width.astype(float), self._half_height.astype(float),
+            self._rim.astype(float), self._half_depth.astype(float), self._min_area,
+            self._s_target, np.ascontiguousarray(self._s_lat.ravel()),
+            np.ascontiguousarray(self._s_dz.ravel()), np.asarray(proj.view_centres, float),
+            scalars,
+        )  # fmt: skip
+        outputs = tuple(
+            k[name]
+            for name in (
+                "local", "bearing", "distance", "width_px", "height_px", "half_angle",
+                "full_area", "candidate", "diff", "lateral", "rays", "sample_ok",
+            )
+        )  # fmt: skip
+        # The world's LED states are read at each call (between the poses and the constants).
+        self._kernel_poses = (k["cam"], k["rot"], k["centre"], k["gmat"])
+        self._kernel_rest = (*consts, *outputs)
+        class_count = np.array(
+            [int(np.sum(self.target_cls == c)) for c in (LED, FACE, BATTERY)], dtype=np.int64
+        )
+        starts = np.array([a for a, _ in self._sample_range], dtype=np.int64)
+        ends = np.array([b for _, b in self._sample_range], dtype=np.int64)
+        self._kernel_nearest_tail = (
+            np.ascontiguousarray(self._lazy_class_cols, dtype=np.int64), class_count, starts,
+            ends, self._inv_samples.astype(float), self._s_geom.astype(np.int64),
+            np.asarray(self._exclude, dtype=np.int64), _VISIBLE_GROUPS,
+            np.zeros(1, dtype=np.int32), np.zeros(n_targets, dtype=np.int64),
+        )  # fmt: skip
+
+    def _gather(self) -> None:
+        """Copy the camera and target poses into the kernel's input buffers."""
+        d, k = self.world.data, self._kernel
+        np.take(d.site_xpos, self._cam_site, axis=0, out=k["cam"])
+        np.take(d.site_xmat, self._cam_site, axis=0, out=k["rot"])
+        np.take(d.geom_xpos, self.target_geom, axis=0, out=k["centre"])
+        np.take(d.geom_xmat, self.target_geom, axis=0, out=k["gmat"])
+
+    def _front_numpy(self) -> _Front:
+        """The reference implementation of :meth:`_front` (numpy)."""
         d = self.world.data
         n = self.n_robots
         cam = d.site_xpos[self._cam_site]  # (n, 3)

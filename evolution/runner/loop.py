@@ -266,12 +266,11 @@ class EvolutionRunner:
         perception = self.perception
         inputs = perception.update()
         nd = perception.norm_distance
-        controller.fill_inputs(
-            survival.energy, perception.proximity, nd[:, FACE], nd[:, LED], nd[:, BATTERY],
-            self.world.led_on,
+        behaviour, led, proceed = controller.decide(
+            weights, survival.energy, perception.proximity, nd[:, FACE], nd[:, LED],
+            nd[:, BATTERY], self.world.led_on, inputs.mate_available, inputs.forage_available,
+            survival.recharge_steps,
         )  # fmt: skip
-        behaviour, led = controller.select(weights, inputs.mate_available, inputs.forage_available)
-        proceed = controller.continue_recharge(weights, survival.energy, survival.recharge_steps)
         # A robot that keeps recharging runs no behaviour: its LED is dark.
         holding = self._holding
         np.logical_and(survival.docked, proceed, out=holding)

@@ -36,6 +36,7 @@ from cyber_rodent.vision import BATTERY, FACE, LED, N_CLASSES, GeometricVision, 
 from cyber_rodent.vision.detections import apply_noise
 from cyber_rodent.vision.types import DEFAULT_MAX_DISTANCE
 from cyber_rodent.world import World
+from evolution.runner import perception_kernel
 
 _TWO_PI = 2 * math.pi
 
@@ -85,6 +86,8 @@ class Perception:
         self._led_seen = self.visible[:, LED]
         self._prox = _as_slice(PROXIMITY_SIX)
         self._prox_max = np.ascontiguousarray(world.range_max[:, self._prox])
+        self._prox_columns = np.asarray(PROXIMITY_SIX, dtype=np.int64)
+        self._raw = world.range_sensordata
         #: Optional sensor noise (``cyber_rodent.profiles.RangeSensorNoise``) applied to the
         #: raw range readings; None (the default) costs one attribute test per step.
         self.range_noise = None
@@ -127,6 +130,15 @@ class Perception:
             np.copyto(self.bearing, frame.bearing)
             np.copyto(self.distance, frame.distance)
             np.copyto(self.visible, frame.visible)
+        if self.range_noise is None and perception_kernel.AVAILABLE:
+            inp = self.inputs
+            perception_kernel.map_inputs(
+                self._raw, self.world.range_max, self.ranges, self._prox_columns,
+                self._prox_max, self.bearing, self.distance, self.visible, self.max_distance,
+                LED, FACE, BATTERY, self.proximity, self._norm_bearing, self.norm_distance,
+                inp.mate, inp.forage, inp.search, inp.mate_available, inp.forage_available,
+            )  # fmt: skip
+            return inp
         self._proximity()
         self._map_inputs()
         return self.inputs
