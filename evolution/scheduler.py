@@ -57,10 +57,12 @@ from evolution.stats import StatisticsRecorder
 #: ``mated_with`` value for "no mating this step" (as in the survival world's events).
 NO_PARTNER = -1
 
-#: Generations whose completed lives :attr:`TimeSharingScheduler.completed_lives` keeps: the
-#: newest two, so a checkpoint written when a generation closes still holds that generation's
-#: lives (what :func:`evolution.transfer.fittest_individuals` ranks) without the state growing
-#: over a long run.
+#: :attr:`TimeSharingScheduler.completed_lives` keeps the lives of the generations from this
+#: many below the newest closed one upwards: a checkpoint written when a generation closes
+#: still holds that generation's lives (what :func:`evolution.transfer.fittest_individuals`
+#: ranks), and the state does not grow over a long run. EE slots run ahead of the last closed
+#: generation by several generations, so this counts from the closed generations, not from
+#: the newest lives.
 LIFE_RECORD_GENERATIONS = 2
 
 
@@ -113,7 +115,8 @@ class TimeSharingScheduler:
         steps: control steps processed.
         stats: the per-generation statistics.
         completed_lives: generation -> :class:`LifeRecord` of each agent that completed its
-            lifetime in it, for the newest :data:`LIFE_RECORD_GENERATIONS` generations.
+            lifetime in it, for the generations from :data:`LIFE_RECORD_GENERATIONS` below the
+            newest closed one upwards.
         birth_log: ``(step, robot, slot, generation, origin)`` of every agent created since the
             log was last emptied (the initial population is not logged). A runner drains it
             into its event log after each step; it is part of the picklable state.
@@ -300,8 +303,9 @@ class TimeSharingScheduler:
             agent.fitness(self.config.fitness_time_unit),
         )  # fmt: skip
         lives.setdefault(generation, []).append(record)
-        while len(lives) > LIFE_RECORD_GENERATIONS:
-            del lives[min(lives)]
+        oldest = self.completed_generations() - LIFE_RECORD_GENERATIONS
+        for old in [g for g in lives if g < oldest]:
+            del lives[old]
 
     def lives_of(self, generation: int) -> list[LifeRecord]:
         """The recorded full lives of ``generation`` (empty if none, or no longer kept)."""

@@ -245,12 +245,25 @@ def test_completed_lives_are_recorded_with_their_genome_and_fitness() -> None:
                                                _genome(3.0)]  # fmt: skip
     assert all(life.generation == 0 for life in lives)
     assert ee.agent(0, 0).genome != _genome(0.0)  # the living agent is its offspring
-    _run(ee, 16)  # generations 1 and 2
-    assert sorted(ee.completed_lives) == [1, 2]  # generation 0's records were dropped
+    _run(ee, 24)  # generations 1, 2 and 3; 3 is recorded when 0, 1 and 2 have closed
+    assert ee.completed_generations() == 4
+    assert sorted(ee.completed_lives) == [1, 2, 3]  # generation 0's records were dropped
     assert ee.lives_of(0) == []
     assert len(ee.lives_of(2)) == 4
     restored = pickle.loads(pickle.dumps(ee))
     assert restored.lives_of(2) == ee.lives_of(2)
+
+
+def test_completed_lives_are_kept_while_their_generation_is_open() -> None:
+    """EE slots run ahead of the last closed generation: lives are pruned relative to the
+    closed generations, so the generation a checkpoint closes still has its lives."""
+    ee = EmbodiedEvolution(_small(), np.random.default_rng(0), _numbered(4))
+    for _ in range(24):  # robot 1's agents keep dying: no generation can close
+        _step(ee, died=(1,))
+    assert ee.completed_generations() == 0
+    np.testing.assert_array_equal(ee.slot_generation, [[3, 3], [0, 0]])
+    assert sorted(ee.completed_lives) == [0, 1, 2]  # robot 0 lived generations 0-2
+    assert [(life.robot, life.slot) for life in ee.lives_of(0)] == [(0, 0), (0, 1)]
 
 
 def test_statistics_hand_computed() -> None:

@@ -126,6 +126,8 @@ def test_transfer_seeds_the_new_colony_and_writes_fig7(source_run, tmp_path) -> 
     )  # fmt: skip
     meta = json.loads((out / TRANSFER_FILE).read_text())
     assert meta["source_generation"] == 2 and len(meta["individuals"]) == 3
+    # The checkpoint of generation 2 is written when generation index 1 closes: its lives.
+    assert meta["ranked"] == "lives completed in generation 1 (0-based)"
     assert meta["actuator_sample"]["wheel_gain"][2][0] < 0.8  # the weak robot
     per_robot = pd.read_csv(out / ROBOT_STATISTICS_FILE)
     assert set(per_robot["robot"]) == {0, 1, 2}
