@@ -49,6 +49,7 @@ import mujoco
 import numpy as np
 
 from cyber_rodent import constants as C
+from cyber_rodent import survival_kernel
 from cyber_rodent.world import LED_OFF_RGBA, LED_ON_RGBA, World, WorldConfig, dock_hold_name
 
 # Weld equality data layout (MuJoCo 3.x ``eq_data`` row): anchor (3), relative pose of body2 in
@@ -332,6 +333,7 @@ class SurvivalWorld:
         self._dock_code = np.zeros(m.ngeom, dtype=np.int8)  # teeth 1, electrode 2
         self._dock_code[w.teeth_geom] = 1
         self._dock_code[w.electrode_geom] = 2
+        self._dock_pairs = np.zeros((64, 2), dtype=np.int64)  # the kernel's output, grown
         self._floor_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, C.FLOOR_GEOM)
         # The wheel motors' ctrl as an (n, 2) view (one slice: left/right per robot).
         motors = [
@@ -585,6 +587,18 @@ class SurvivalWorld:
         # One lookup finds teeth/electrode contacts among all contacts: teeth geoms have bit 1,
         # electrodes bit 2, so a pair ORs to 3 exactly when it is teeth on electrode.
         geom = self.world.data.contact.geom
+        if survival_kernel.AVAILABLE:
+            pairs = self._dock_pairs
+            if len(pairs) < len(geom):
+                pairs = self._dock_pairs = np.zeros((2 * len(geom), 2), dtype=np.int64)
+            k = survival_kernel.teeth_on_electrodes(
+                geom, self._dock_code, self._teeth_owner, self._electrode_owner, self.alive,
+                self.docked, self._in_reflex, self.reflex_steps_left, pairs,
+            )  # fmt: skip
+            for i, j in pairs[:k].tolist():
+                if not self.docked[i] and self._pack_ahead(i, j):
+                    self._dock(i, j)
+            return
         code = self._dock_code[geom]
         pair = np.bitwise_or(code[:, 0], code[:, 1])
         hits = np.flatnonzero(pair == 3)
