@@ -11,6 +11,8 @@ overrides, runs :class:`~evolution.runner.EvolutionRunner` and returns its per-g
 statistics. With ``out_dir`` it also writes, atomically:
 
 - ``statistics.csv``: the table (after every checkpoint and at the end);
+- ``statistics_per_robot.csv``: per generation and robot, mean batteries over the robot's full
+  lifetimes with unmated agents scored 0 (the paper's Fig. 7 measure);
 - ``events.csv``: the event log (dockings, recharge ends, matings, deaths, births);
 - ``run.json``: config, seed, behaviour policies, versions and headline numbers;
 - ``checkpoints/gen_NNNNN.ckpt``: the complete state every ``checkpoint_every`` generations.
@@ -56,6 +58,8 @@ _WORLD_FIELDS = {"n_packs"}
 OVERRIDES = tuple(sorted(_EVOLUTION_FIELDS | _GENETIC_FIELDS | _RUN_FIELDS | _WORLD_FIELDS))
 
 STATISTICS_FILE = "statistics.csv"
+ROBOT_STATISTICS_FILE = "statistics_per_robot.csv"
+ROBOT_COLUMNS = ("generation", "robot", "batteries_mean", "full_lifetimes", "completed")
 EVENTS_FILE = "events.csv"
 RUN_FILE = "run.json"
 CHECKPOINT_DIR = "checkpoints"
@@ -182,6 +186,9 @@ def run(
 
         def write_results(r: EvolutionRunner) -> None:
             _write_atomic(out / STATISTICS_FILE, lambda p: r.statistics().to_csv(p, index=False))
+            _write_atomic(
+                out / ROBOT_STATISTICS_FILE, lambda p: robot_table(r).to_csv(p, index=False)
+            )
 
         table = runner.run(
             generations,
@@ -193,9 +200,20 @@ def run(
             on_generation=write_results,
         )
         _write_atomic(out / STATISTICS_FILE, lambda p: table.to_csv(p, index=False))
+        _write_atomic(
+            out / ROBOT_STATISTICS_FILE, lambda p: robot_table(runner).to_csv(p, index=False)
+        )
         _write_atomic(out / EVENTS_FILE, runner.events.write_csv)
         _write_json(out / RUN_FILE, run_record(runner, generations))
     return table
+
+
+def robot_table(runner: EvolutionRunner) -> pd.DataFrame:
+    """Per generation and robot: batteries_mean (unmated agents scored 0), full_lifetimes,
+    completed — the table Fig. 7 plots (:class:`evolution.stats.RobotGenerationStats`)."""
+    import pandas as pd
+
+    return pd.DataFrame(runner.scheduler.stats.robot_records(), columns=list(ROBOT_COLUMNS))
 
 
 def holds_a_run(out: Path) -> bool:

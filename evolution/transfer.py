@@ -39,13 +39,20 @@ import numpy as np
 import pandas as pd
 
 from cyber_rodent.profiles import HardwareProfile, apply_field, apply_vision
-from evolution.api import CHECKPOINT_DIR, EVENTS_FILE, RUN_FILE, STATISTICS_FILE, run_record
+from evolution.api import (
+    CHECKPOINT_DIR,
+    EVENTS_FILE,
+    ROBOT_STATISTICS_FILE,
+    RUN_FILE,
+    STATISTICS_FILE,
+    robot_table,
+    run_record,
+)
 from evolution.genome import Genome
 from evolution.runner import EvolutionRunner, RunConfig, list_checkpoints
 from evolution.scheduler import TimeSharingScheduler
 
 TRANSFER_FILE = "transfer.json"
-ROBOT_STATISTICS_FILE = "statistics_per_robot.csv"
 FIGURE_BASE = "figures/fig7"
 
 
@@ -190,9 +197,8 @@ def ranked_generation(checkpoint_generation: int) -> int | None:
 
 def robot_statistics(runner: EvolutionRunner) -> pd.DataFrame:
     """Per generation and robot: batteries_mean (unmated agents scored 0), full_lifetimes,
-    completed — the table Fig. 7 plots (:class:`evolution.stats.RobotGenerationStats`)."""
-    columns = ["generation", "robot", "batteries_mean", "full_lifetimes", "completed"]
-    return pd.DataFrame(runner.scheduler.stats.robot_records(), columns=columns)
+    completed — the table Fig. 7 plots (see :func:`evolution.api.robot_table`)."""
+    return robot_table(runner)
 
 
 @dataclass(frozen=True)

@@ -58,6 +58,9 @@ def test_evolve_plot_render(tmp_path: Path) -> None:
     assert "cyber-rodent sweep" in r.stdout  # tells the user how to run the full experiment
     table = pd.read_csv(out / "statistics.csv")
     assert table["generation"].tolist() == [0, 1]
+    per_robot = pd.read_csv(out / "statistics_per_robot.csv")  # Fig. 7's measure
+    assert set(per_robot["generation"]) <= {0, 1} and set(per_robot["robot"]) <= {0, 1, 2, 3}
+    assert list(per_robot.columns)[:3] == ["generation", "robot", "batteries_mean"]
     run = json.loads((out / "run.json").read_text())
     assert run["seed"] == 1 and run["config"]["evolution"]["population_size"] == 4
     versions = json.loads((out / "versions.json").read_text())
