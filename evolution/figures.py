@@ -182,6 +182,31 @@ def plot_fig6(
     return paths
 
 
+def pool_per_robot(tables: Sequence[pd.DataFrame]) -> pd.DataFrame:
+    """Mean and population std over runs of each robot's ``batteries_mean`` per generation.
+
+    For several transfer runs (seeds) of the same colony: robot ``r`` is the same robot in
+    each (e.g. the weak one), so its curves can be pooled. Generations a run lacks are left
+    out of that generation's mean (``runs`` counts the contributors).
+
+    Returns:
+        Columns ``generation``, ``robot``, ``batteries_mean``, ``batteries_std``, ``runs``,
+        ready for :func:`plot_per_robot`.
+    """
+    if not tables:
+        raise ValueError("pool_per_robot needs at least one per-robot table")
+    frames = []
+    for k, t in enumerate(tables):
+        missing = {"generation", "robot", "batteries_mean"} - set(t.columns)
+        if missing:
+            raise ValueError(f"per-robot table lacks column(s) {sorted(missing)}")
+        frames.append(t[["generation", "robot", "batteries_mean"]].assign(run=k))
+    grouped = pd.concat(frames).groupby(["generation", "robot"])["batteries_mean"]
+    pooled = grouped.agg(batteries_mean="mean", batteries_std=lambda x: float(np.std(x)))
+    pooled["runs"] = grouped.size()
+    return pooled.reset_index()
+
+
 def plot_per_robot(
     per_robot: pd.DataFrame, out_base: str | Path, title: str | None = None
 ) -> list[Path]:
@@ -202,7 +227,7 @@ def plot_per_robot(
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 4.0))
     for robot, rows in per_robot.sort_values("generation").groupby("robot"):
-        ax.plot(
+        (line,) = ax.plot(
             rows["generation"],
             rows["batteries_mean"],
             marker="o",
@@ -210,6 +235,15 @@ def plot_per_robot(
             lw=1.8,
             label=f"CR {int(robot) + 1}",
         )
+        if "batteries_std" in rows.columns:  # e.g. a mean over transfer runs: ± std band
+            ax.fill_between(
+                rows["generation"],
+                rows["batteries_mean"] - rows["batteries_std"],
+                rows["batteries_mean"] + rows["batteries_std"],
+                color=line.get_color(),
+                alpha=0.12,
+                lw=0,
+            )
     ax.set_xlabel("Generation")
     ax.set_ylabel("Captured batteries per agent")
     ax.set_ylim(bottom=0)

@@ -7,7 +7,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from evolution.figures import aggregate_runs, plot_fig6, plot_per_robot, summarise_runs
+from evolution.figures import (
+    aggregate_runs,
+    plot_fig6,
+    plot_per_robot,
+    pool_per_robot,
+    summarise_runs,
+)
 
 
 def table(batteries, matings) -> pd.DataFrame:
@@ -76,8 +82,25 @@ def test_plot_per_robot(tmp_path) -> None:
         {"generation": g, "robot": r, "batteries_mean": g + r} for g in range(5) for r in range(3)
     ]
     paths = plot_per_robot(pd.DataFrame(rows), tmp_path / "fig7")
-    assert iio.imread(paths[0]).shape[0] > 200
+    plain = iio.imread(paths[0])
+    assert plain.shape[0] > 200
+    banded = pd.DataFrame(rows).assign(batteries_std=1.0)  # a mean over runs: ± std bands
+    image = iio.imread(plot_per_robot(banded, tmp_path / "fig7_band")[0])
+    assert image.shape == plain.shape and not np.array_equal(image, plain)
     with pytest.raises(ValueError, match="empty"):
         plot_per_robot(
             pd.DataFrame(columns=["generation", "robot", "batteries_mean"]), tmp_path / "x"
         )
+
+
+def test_pool_per_robot_hand_computed() -> None:
+    a = pd.DataFrame(
+        {"generation": [0, 0, 1], "robot": [0, 1, 0], "batteries_mean": [2.0, 4.0, 6.0]}
+    )
+    b = pd.DataFrame({"generation": [0, 0], "robot": [0, 1], "batteries_mean": [4.0, 4.0]})
+    pooled = pool_per_robot([a, b]).set_index(["generation", "robot"])
+    assert pooled.loc[(0, 0)].tolist() == [3.0, 1.0, 2]  # mean of 2 and 4, std 1, two runs
+    assert pooled.loc[(0, 1)].tolist() == [4.0, 0.0, 2]
+    assert pooled.loc[(1, 0)].tolist() == [6.0, 0.0, 1]  # only run a reached generation 1
+    with pytest.raises(ValueError, match="at least one"):
+        pool_per_robot([])
