@@ -244,7 +244,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     # --- scaling -----------------------------------------------------------------------
     robots = {n: _scaling_world(n, 5, scale_steps, args.seed) for n in (1, 2, 4, 8, 16)}
-    packs = {k: _scaling_world(4, k, scale_steps, args.seed) for k in (0, 5, 10, 20)}
+    packs = {k: _scaling_world(4, k, scale_steps, args.seed) for k in (0, 5, 10, 15)}
     results["scaling"] = {"robots (5 packs)": robots, "packs (4 robots)": packs}
 
     # --- workers -----------------------------------------------------------------------
