@@ -17,22 +17,13 @@ import math
 
 import numpy as np
 
-try:
-    import numba
-except ImportError:  # pragma: no cover - numba is a dependency; this keeps numpy working
-    numba = None
+from cyber_rodent.compiled import AVAILABLE
+from cyber_rodent.compiled import jit as _jit
 
-#: The compiled kernel can be used.
-AVAILABLE = numba is not None
+__all__ = ["AVAILABLE"]
 
 #: :func:`act` return codes.
 OK, BAD_BEHAVIOUR, BAD_STATE = 0, 1, 2
-
-
-def _jit(function):
-    if numba is None:  # pragma: no cover
-        return function
-    return numba.njit(cache=True, nogil=True)(function)
 
 
 @_jit

@@ -11,19 +11,10 @@ near-ties (``tests/test_evolution_controller.py`` compares both on random agents
 
 from __future__ import annotations
 
-try:
-    import numba
-except ImportError:  # pragma: no cover - numba is a dependency; this keeps numpy working
-    numba = None
+from cyber_rodent.compiled import AVAILABLE
+from cyber_rodent.compiled import jit as _jit
 
-#: The compiled kernel can be used.
-AVAILABLE = numba is not None
-
-
-def _jit(function):
-    if numba is None:  # pragma: no cover
-        return function
-    return numba.njit(cache=True, nogil=True)(function)
+__all__ = ["AVAILABLE"]
 
 
 @_jit

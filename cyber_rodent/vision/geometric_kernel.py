@@ -31,10 +31,8 @@ import platform
 import mujoco
 import numpy as np
 
-try:
-    import numba
-except ImportError:  # pragma: no cover - numba is a dependency; this keeps numpy working
-    numba = None
+from cyber_rodent import compiled
+from cyber_rodent.compiled import jit as _jit
 
 __all__ = ["AVAILABLE", "front", "nearest", "unavailable_reason"]
 
@@ -61,7 +59,7 @@ def _load_mj_ray():
     Returns:
         (the numba external function or None, why it is unavailable).
     """
-    if numba is None:  # pragma: no cover
+    if not compiled.AVAILABLE:  # pragma: no cover
         return None, "numba is not installed"
     if mujoco.__version__ not in VERIFIED_MUJOCO:
         return None, (
@@ -102,14 +100,6 @@ AVAILABLE = _MJ_RAY is not None
 def unavailable_reason() -> str:
     """Why :data:`AVAILABLE` is False ("" if it is True)."""
     return _REASON
-
-
-def _jit(function=None, *, cache: bool = True):
-    if function is None:
-        return lambda f: _jit(f, cache=cache)
-    if numba is None:  # pragma: no cover
-        return function
-    return numba.njit(cache=cache, fastmath=False, nogil=True)(function)
 
 
 @_jit

@@ -13,21 +13,12 @@ from __future__ import annotations
 
 import math
 
-try:
-    import numba
-except ImportError:  # pragma: no cover - numba is a dependency; this keeps numpy working
-    numba = None
+from cyber_rodent.compiled import AVAILABLE
+from cyber_rodent.compiled import jit as _jit
 
-#: The compiled kernel can be used.
-AVAILABLE = numba is not None
+__all__ = ["AVAILABLE"]
 
 _TWO_PI = 2 * math.pi
-
-
-def _jit(function):
-    if numba is None:  # pragma: no cover
-        return function
-    return numba.njit(cache=True, nogil=True)(function)
 
 
 @_jit
