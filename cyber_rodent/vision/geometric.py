@@ -22,6 +22,11 @@ measures how well they agree):
 Every index is computed at construction; a call of :meth:`GeometricVision.observe` is a fixed
 sequence of small vectorised numpy operations plus one ``mj_multiRay`` per robot, cast only at
 the targets that could be seen at all (``benchmarks/vision_cost.py`` measures it).
+
+The hot path (the geometry before the rays, and :meth:`GeometricVision.nearest_targets` with
+its lazy rays) runs as a compiled kernel where numba is available
+(:mod:`cyber_rodent.vision.geometric_kernel`, ``backend="auto"``); the numpy implementation
+(``backend="numpy"``) is the reference the kernel is tested against.
 """
 
 from __future__ import annotations
