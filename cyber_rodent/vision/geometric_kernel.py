@@ -262,118 +262,113 @@ def front(
             sample_ok[i, s] = inside
 
 
-def _make_nearest():
-    @_jit
-    def nearest(
-        maddr,
-        daddr,
-        cam,
-        rot,
-        centre,
-        gmat,
-        led_on,
-        own,
-        plate,
-        half_width,
-        half_height,
-        rim,
-        half_depth,
-        min_area,
-        s_target,
-        s_lat,
-        s_dz,
-        view_centres,
-        scalars,
-        local,
-        bearing,
-        distance,
-        width_px,
-        height_px,
-        half_angle,
-        full_area,
-        candidate,
-        diff,
-        lateral,
-        rays,
-        sample_ok,
-        class_cols,
-        class_count,
-        sample_start,
-        sample_end,
-        inv_samples,
-        s_geom,
-        exclude,
-        groups,
-        geom_id,
-        order,
-        out_bearing,
-        out_distance,
-        out_visible,
-    ):
-        """The front, then each robot's nearest visible target of each class with lazy rays
-        (``GeometricVision.nearest_targets``' algorithm; outputs (n, 3))."""
-        front(
-            cam, rot, centre, gmat, led_on, own, plate, half_width, half_height, rim,
-            half_depth, min_area, s_target, s_lat, s_dz, view_centres, scalars, local,
-            bearing, distance, width_px, height_px, half_angle, full_area, candidate, diff,
-            lateral, rays, sample_ok,
-        )  # fmt: skip
-        n = cam.shape[0]
-        n_s = rays.shape[1]
-        # mj_ray reads 3 doubles at each point/direction address (24 bytes per row). The
-        # addresses are signed 64-bit: numba would turn uintp + int64 into a float.
-        cam_ptr, rays_ptr = np.int64(cam.ctypes.data), np.int64(rays.ctypes.data)
-        groups_ptr, geom_ptr = np.int64(groups.ctypes.data), np.int64(geom_id.ctypes.data)
-        row = np.int64(24)
-        null = np.int64(0)
-        for i in range(n):
-            for c in range(3):
-                out_visible[i, c] = False
-                out_distance[i, c] = np.inf
-                out_bearing[i, c] = 0.0
-                # This class's candidates, nearest first (stable: ties to the lower index).
-                k = 0
-                for j in range(class_count[c]):
-                    t = class_cols[c, j]
-                    if not candidate[i, t]:
-                        continue
-                    p = k
-                    while p > 0 and distance[i, order[p - 1]] > distance[i, t]:
-                        order[p] = order[p - 1]
-                        p -= 1
-                    order[p] = t
-                    k += 1
-                for j in range(k):
-                    t = order[j]
-                    # Visible iff full_area * (hits * inv) >= min_area; stop as soon as the
-                    # answer is certain either way.
-                    full, need, step = full_area[i, t], min_area[t], inv_samples[t]
-                    first, end = sample_start[t], sample_end[t]
-                    left = 0
-                    for s in range(first, end):
-                        left += sample_ok[i, s]
-                    hits = 0
-                    seen = full * (hits * step) >= need
-                    while not seen and left > 0 and full * ((hits + left) * step) >= need:
-                        s = first
-                        while not sample_ok[i, s]:
-                            s += 1
-                        first = s + 1
-                        left -= 1
-                        _MJ_RAY(
-                            maddr, daddr, cam_ptr + i * row, rays_ptr + (i * n_s + s) * row,
-                            groups_ptr, np.uint8(1), np.int32(exclude[i]), geom_ptr, null,
-                        )  # fmt: skip
-                        if geom_id[0] == s_geom[s]:
-                            hits += 1
-                            seen = full * (hits * step) >= need
-                    if seen:
-                        out_visible[i, c] = True
-                        out_distance[i, c] = distance[i, t]
-                        out_bearing[i, c] = bearing[i, t]
-                        break
-
-    return nearest
-
-
-nearest = _make_nearest() if AVAILABLE else None
+# Compiled lazily at the first call; the provider calls it only when AVAILABLE.
+@_jit
+def nearest(
+    maddr,
+    daddr,
+    cam,
+    rot,
+    centre,
+    gmat,
+    led_on,
+    own,
+    plate,
+    half_width,
+    half_height,
+    rim,
+    half_depth,
+    min_area,
+    s_target,
+    s_lat,
+    s_dz,
+    view_centres,
+    scalars,
+    local,
+    bearing,
+    distance,
+    width_px,
+    height_px,
+    half_angle,
+    full_area,
+    candidate,
+    diff,
+    lateral,
+    rays,
+    sample_ok,
+    class_cols,
+    class_count,
+    sample_start,
+    sample_end,
+    inv_samples,
+    s_geom,
+    exclude,
+    groups,
+    geom_id,
+    order,
+    out_bearing,
+    out_distance,
+    out_visible,
+):
+    """The front, then each robot's nearest visible target of each class with lazy rays
+    (``GeometricVision.nearest_targets``' algorithm; outputs (n, 3))."""
+    front(
+        cam, rot, centre, gmat, led_on, own, plate, half_width, half_height, rim,
+        half_depth, min_area, s_target, s_lat, s_dz, view_centres, scalars, local,
+        bearing, distance, width_px, height_px, half_angle, full_area, candidate, diff,
+        lateral, rays, sample_ok,
+    )  # fmt: skip
+    n = cam.shape[0]
+    n_s = rays.shape[1]
+    # mj_ray reads 3 doubles at each point/direction address (24 bytes per row). The
+    # addresses are signed 64-bit: numba would turn uintp + int64 into a float.
+    cam_ptr, rays_ptr = np.int64(cam.ctypes.data), np.int64(rays.ctypes.data)
+    groups_ptr, geom_ptr = np.int64(groups.ctypes.data), np.int64(geom_id.ctypes.data)
+    row = np.int64(24)
+    null = np.int64(0)
+    for i in range(n):
+        for c in range(3):
+            out_visible[i, c] = False
+            out_distance[i, c] = np.inf
+            out_bearing[i, c] = 0.0
+            # This class's candidates, nearest first (stable: ties to the lower index).
+            k = 0
+            for j in range(class_count[c]):
+                t = class_cols[c, j]
+                if not candidate[i, t]:
+                    continue
+                p = k
+                while p > 0 and distance[i, order[p - 1]] > distance[i, t]:
+                    order[p] = order[p - 1]
+                    p -= 1
+                order[p] = t
+                k += 1
+            for j in range(k):
+                t = order[j]
+                # Visible iff full_area * (hits * inv) >= min_area; stop as soon as the
+                # answer is certain either way.
+                full, need, step = full_area[i, t], min_area[t], inv_samples[t]
+                first, end = sample_start[t], sample_end[t]
+                left = 0
+                for s in range(first, end):
+                    left += sample_ok[i, s]
+                hits = 0
+                seen = full * (hits * step) >= need
+                while not seen and left > 0 and full * ((hits + left) * step) >= need:
+                    s = first
+                    while not sample_ok[i, s]:
+                        s += 1
+                    first = s + 1
+                    left -= 1
+                    _MJ_RAY(
+                        maddr, daddr, cam_ptr + i * row, rays_ptr + (i * n_s + s) * row,
+                        groups_ptr, np.uint8(1), np.int32(exclude[i]), geom_ptr, null,
+                    )  # fmt: skip
+                    if geom_id[0] == s_geom[s]:
+                        hits += 1
+                        seen = full * (hits * step) >= need
+                if seen:
+                    out_visible[i, c] = True
+                    out_distance[i, c] = distance[i, t]
+                    out_bearing[i, c] = bearing[i, t]
+                    break
