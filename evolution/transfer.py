@@ -195,12 +195,6 @@ def ranked_generation(checkpoint_generation: int) -> int | None:
     return checkpoint_generation - 1 if checkpoint_generation > 0 else None
 
 
-def robot_statistics(runner: EvolutionRunner) -> pd.DataFrame:
-    """Per generation and robot: batteries_mean (unmated agents scored 0), full_lifetimes,
-    completed — the table Fig. 7 plots (see :func:`evolution.api.robot_table`)."""
-    return robot_table(runner)
-
-
 @dataclass(frozen=True)
 class TransferResult:
     """What :func:`transfer` produced.
@@ -318,7 +312,7 @@ def transfer(
 
         def write_tables(r: EvolutionRunner) -> None:
             r.statistics().to_csv(dst / STATISTICS_FILE, index=False)
-            robot_statistics(r).to_csv(dst / ROBOT_STATISTICS_FILE, index=False)
+            robot_table(r).to_csv(dst / ROBOT_STATISTICS_FILE, index=False)
 
         _write_json(dst / RUN_FILE, _run_record(runner, generations))
         table = runner.run(
@@ -332,7 +326,7 @@ def transfer(
         write_tables(runner)
         runner.events.write_csv(dst / EVENTS_FILE)
         _write_json(dst / RUN_FILE, _run_record(runner, generations))
-        per_robot = robot_statistics(runner)
+        per_robot = robot_table(runner)
     figure: list[Path] = []
     if len(per_robot):
         from evolution.figures import plot_per_robot
@@ -358,6 +352,5 @@ __all__ = [
     "checkpoint_of_generation",
     "fittest_individuals",
     "hardware_run_config",
-    "robot_statistics",
     "transfer",
 ]

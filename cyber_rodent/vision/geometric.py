@@ -374,11 +374,13 @@ class GeometricVision:
             return
         n, n_targets, n_samples = self.n_robots, len(self.target_geom), len(self._s_target)
         proj = self.projection
-        scalars = np.zeros(12)
-        scalars[:10] = (
-            self.config.max_range, proj.view_span, self.config.n_views, proj.px_per_u,
-            proj.px_per_v, proj.v_top, proj.v_bottom, self._tan_el_min, self._tan_el_max,
-            _EDGE_CLIP,
+        scalars = np.array(
+            [
+                self.config.max_range, proj.view_span, self.config.n_views, proj.px_per_u,
+                proj.px_per_v, proj.v_top, proj.v_bottom, self._tan_el_min, self._tan_el_max,
+                _EDGE_CLIP,
+            ],
+            dtype=float,
         )  # fmt: skip
         k: dict[str, np.ndarray] = {
             "cam": np.zeros((n, 3)),

@@ -149,8 +149,8 @@ def front(
         plate, half_width, half_height, rim, half_depth, min_area: (T,) target constants.
         s_target: (S,) target of each occlusion sample; s_lat, s_dz: (S,) its offsets (m).
         view_centres: (n_views,) rad.
-        scalars: (12,) max_range, view_span, n_views, px_per_u, px_per_v, v_top, v_bottom,
-            tan_el_min, tan_el_max, edge_clip, and two unused slots.
+        scalars: (10,) max_range, view_span, n_views, px_per_u, px_per_v, v_top, v_bottom,
+            tan_el_min, tan_el_max, edge_clip.
         local .. candidate: (n, T[, 3]) outputs as in ``_Front``; diff, lateral: (n, T, 3)
             scratch; rays: (n, S, 3) and sample_ok: (n, S) outputs.
     """
