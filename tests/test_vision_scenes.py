@@ -26,6 +26,8 @@ from cyber_rodent.vision import (
 from cyber_rodent.vision.agreement import compare_scene, random_scene, summarise
 from cyber_rodent.vision.geometric import GeometricVision
 from cyber_rodent.vision.rendered import RenderedVision
+from cyber_rodent.vision.segmentation import OmniSegmenter
+from cyber_rodent.vision.targets import target_geometry
 from cyber_rodent.world import World, WorldConfig
 
 BEARING_TOL = math.radians(3.0)
@@ -205,6 +207,21 @@ def test_providers_agree_on_random_scenes() -> None:
             assert stats[name].agreement >= 0.9, name
     assert stats["all"].bearing_error_median_deg <= 3.0
     assert stats["all"].distance_error_median <= 0.15
+
+
+def test_compiled_and_opencv_segmentation_identical_on_rendered_scenes() -> None:
+    """The default (compiled) segmentation finds exactly the OpenCV reference's blobs."""
+    world = World(WorldConfig(n_robots=4, n_packs=5))
+    with RenderedVision(world) as ren:
+        assert ren.segmenter.backend == "compiled"
+        reference = OmniSegmenter(ren.config, target_geometry(world), backend="opencv")
+        for s in range(6):
+            random_scene(world, np.random.default_rng([7, s]))
+            strips = ren.renderer.render()
+            fast, ref = ren.segmenter.detect(strips), reference.detect(strips)
+            assert len(ref[0]) > 0
+            for a, b in zip(fast, ref, strict=True):
+                np.testing.assert_array_equal(a, b)
 
 
 def test_snapshot_png_has_image_and_overlay(world, tmp_path) -> None:

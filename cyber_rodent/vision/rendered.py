@@ -31,7 +31,8 @@ class RenderedVision:
     Attributes:
         last_strips: (n_robots, height, strip_width, 3) RGB of the latest :meth:`observe`
             (overwritten by the next call).
-        last_masks: (3, n_robots, height, strip_width) class masks of the latest call.
+        last_classes: (n_robots, height, strip_width) uint8 class bits of the latest call
+            (bit c = class c; overwritten by the next call).
     """
 
     def __init__(
@@ -49,13 +50,13 @@ class RenderedVision:
         self.segmenter = OmniSegmenter(self.config, target_geometry(world))
         self.projection = self.renderer.projection
         self.last_strips: np.ndarray | None = None
-        self.last_masks: np.ndarray | None = None
+        self.last_classes: np.ndarray | None = None
 
     def observe(self) -> VisionFrame:
         """Render every robot's omni strip and segment it."""
         strips = self.renderer.render()
-        robot, cls, bearing, distance, area, masks = self.segmenter.detect(strips)
-        self.last_strips, self.last_masks = strips, masks
+        robot, cls, bearing, distance, area, classes = self.segmenter.detect(strips)
+        self.last_strips, self.last_classes = strips, classes
         keep = np.ones(len(robot), dtype=bool)
         apply_noise(self.config.noise, self.rng, bearing, distance, keep)
         return frame_from_detections(
@@ -66,6 +67,13 @@ class RenderedVision:
             distance[keep],
             area[keep],
         )
+
+    @property
+    def last_masks(self) -> np.ndarray | None:
+        """(3, n_robots, height, strip_width) uint8 0/255 class masks of the latest call."""
+        if self.last_classes is None:
+            return None
+        return self.segmenter.masks_from_classes(self.last_classes)
 
     def close(self) -> None:
         """Release the OpenGL context."""
