@@ -283,8 +283,8 @@ class Labeller:
         """Label the class blobs of stacked strips; see :func:`label`."""
         while True:
             n, k = _label(
-                rgb, lut[0], lut[1], self.height, self.n_classes, self.sin_col, self.cos_col, self.bits,
-                self.run_row, self.run_c0, self.run_c1, self.run_cls, self.parent,
+                rgb, lut[0], lut[1], self.height, self.n_classes, self.sin_col, self.cos_col,
+                self.bits, self.run_row, self.run_c0, self.run_c1, self.run_cls, self.parent,
                 self.edge_left, self.edge_right, self.comp_stats, self.comp_ints,
             )  # fmt: skip
             if n >= 0:
