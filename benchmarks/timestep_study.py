@@ -90,13 +90,22 @@ def trajectory(dt: float, commands: np.ndarray | None = None) -> tuple[np.ndarra
     return np.array(poses), record
 
 
+def _parse_seconds(text: str) -> float:
+    """A timestep written as a decimal (``0.005``) or a fraction (``1/120``)."""
+    num, _, den = text.strip().partition("/")
+    return float(num) / float(den) if den else float(num)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--candidates", default="0.002,0.0025,0.004,0.005,0.00625,0.01,0.0125,0.02,0.025"
+        "--candidates",
+        default="0.002,0.0025,0.004,0.005,0.00625,1/150,1/140,1/130,1/120,1/110,0.01,0.0125,0.02",
+        help="comma-separated timesteps in s (fractions like 1/120 allowed); each must divide "
+        "the 0.1 s control step",
     )
     args = parser.parse_args(argv)
-    candidates = [float(x) for x in args.candidates.split(",")]
+    candidates = [_parse_seconds(x) for x in args.candidates.split(",")]
     for dt in candidates:
         if abs(CONTROL_DT / dt - round(CONTROL_DT / dt)) > 1e-9:
             parser.error(f"candidate {dt} does not divide the {CONTROL_DT} s control step")
