@@ -303,6 +303,8 @@ class SurvivalWorld:
         self._mate_streak = np.zeros((n, n), dtype=np.int64)
         self._streak_active = False
         self._scratch = np.zeros(n, dtype=bool)
+        self._stop_reason = np.zeros(n, dtype=np.int64)
+        self._died = np.zeros(n, dtype=bool)
         self._n_recharging = self._n_reflex = 0
         self._wheel_shape = (n, 2)
         self._flag_shape = (n,)
@@ -347,6 +349,7 @@ class SurvivalWorld:
         self._inv_wheel_radius = 1.0 / w.wheel_radius
         self._geom_rgba = m.geom_rgba
         self._led_geom = w.led_geom.tolist()
+        self._led_geom_array = np.asarray(w.led_geom, dtype=np.int64)
         self._ir_sites = w.ir_port_site
         self._pack_xy = np.zeros((self.n_packs, 2))
 
@@ -464,12 +467,40 @@ class SurvivalWorld:
         recharge_continue: np.ndarray,
     ) -> None:
         """First half of :meth:`step`: apply decisions and commands (physics not stepped)."""
-        # Hot path: a handful of numpy calls on (n,) arrays. Rare states (docked, reflex,
-        # dead) are counted with count_nonzero (cheap) and handled only when present.
         if type(wheels) is not np.ndarray or wheels.dtype != np.float64:
             wheels = np.asarray(wheels, dtype=np.float64)
         if wheels.shape != self._wheel_shape:
             raise ValueError(f"wheels must have shape {self._wheel_shape}, got {wheels.shape}")
+        led = self._flags("led", led)
+        mate = self._flags("mate", mate)
+        recharge_continue = self._flags("recharge_continue", recharge_continue)
+        if not survival_kernel.AVAILABLE:
+            self._check_wheels(wheels)
+            self._begin_numpy(wheels, led, mate, recharge_continue)
+            return
+        # Recharge decisions of docked robots: "stop" ends the recharge now, before this step.
+        cleared = bool(self.docked.any())
+        if cleared:
+            self._check_wheels(wheels)  # an invalid command must change nothing
+            self.events.clear()
+            for i in np.flatnonzero(self.docked & ~recharge_continue).tolist():
+                self._release(i, reflex=True)
+                self._record_end(i, RechargeEnd.DECISION)
+        valid, n_recharging, n_reflex = survival_kernel.begin(
+            wheels, led, mate, self.docked, self.alive, self.reflex_steps_left,
+            self._reflex_wheels, self._inv_wheel_radius, C.TOP_SPEED, self.world.led_on,
+            self._geom_rgba, self._led_geom_array, LED_ON_RGBA, LED_OFF_RGBA, self._ctrl,
+            self._recharging, self._in_reflex, self._mate_signal,
+        )  # fmt: skip
+        if not valid:  # nothing was written
+            self._check_wheels(wheels)
+        if not cleared:
+            self.events.clear()
+        self._n_recharging, self._n_reflex = n_recharging, n_reflex
+        self._mid_step = True
+
+    def _check_wheels(self, wheels: np.ndarray) -> None:
+        """Raise the error that names the problem if a wheel speed is NaN or out of range."""
         if not (-C.TOP_SPEED <= wheels.min() and wheels.max() <= C.TOP_SPEED):  # NaN fails too
             if not np.isfinite(wheels).all():
                 raise ValueError("wheels must be finite wheel speeds in m/s (got NaN or inf)")
@@ -477,10 +508,13 @@ class SurvivalWorld:
                 f"wheels must be in [-{C.TOP_SPEED}, {C.TOP_SPEED}] m/s (the motor limit), "
                 f"got values from {wheels.min():.4g} to {wheels.max():.4g}"
             )
-        led = self._flags("led", led)
-        mate = self._flags("mate", mate)
-        recharge_continue = self._flags("recharge_continue", recharge_continue)
 
+    def _begin_numpy(
+        self, wheels: np.ndarray, led: np.ndarray, mate: np.ndarray, recharge_continue: np.ndarray
+    ) -> None:
+        """:meth:`begin_step` in numpy: the reference of ``survival_kernel.begin``."""
+        # A handful of numpy calls on (n,) arrays. Rare states (docked, reflex, dead) are
+        # counted with count_nonzero (cheap) and handled only when present.
         count = np.count_nonzero
         self.events.clear()
         # Recharge decisions of docked robots: "stop" ends the recharge now, before this step.
@@ -527,6 +561,23 @@ class SurvivalWorld:
         cfg = self.config
         ev = self.events
         count = np.count_nonzero
+        if survival_kernel.AVAILABLE:
+            gain = cfg.recharge_rate - (cfg.energy_decay if cfg.decay_while_recharging else 0.0)
+            n_stops, n_died = survival_kernel.end(
+                self._in_reflex, self.reflex_steps_left, self._recharging, self.energy,
+                self.recharge_steps, self.alive, gain, cfg.max_energy, cfg.max_recharge_steps,
+                cfg.energy_decay, int(RechargeEnd.MAX_STEPS), int(RechargeEnd.FULL),
+                self._stop_reason, self._died,
+            )  # fmt: skip
+            if n_stops:
+                for i in np.flatnonzero(self._stop_reason).tolist():
+                    self._release(i, reflex=True)
+                    self._record_end(i, RechargeEnd(int(self._stop_reason[i])))
+            if n_died:
+                ev.died |= self._died
+                ev.any = True
+            self._after_energy()
+            return ev
         if self._n_reflex:
             np.subtract(self.reflex_steps_left, self._in_reflex, out=self.reflex_steps_left)
 
@@ -559,16 +610,19 @@ class SurvivalWorld:
             self.alive[died] = False
             ev.died |= died
             ev.any = True
+        self._after_energy()
+        return ev
 
+    def _after_energy(self) -> None:
+        """The end of :meth:`end_step`: captures, mating, the step count."""
         if self.n_packs and self.world.data.ncon:
             self._detect_docking()
-        if count(self._mate_signal) >= 2:
+        if np.count_nonzero(self._mate_signal) >= 2:
             self._detect_mating()
         elif self._streak_active:
             self._mate_streak[:] = 0
             self._streak_active = False
         self.step_count += 1
-        return ev
 
     def _flags(self, name: str, value: np.ndarray) -> np.ndarray:
         if type(value) is np.ndarray and value.dtype == bool and value.shape == self._flag_shape:

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from evolution import scheduler_kernel
 from evolution.agent import MatingRecord, Origin, VirtualAgent
 from evolution.agent import fitness as fitness_rule
 from evolution.config import GENOME_LENGTH, EvolutionConfig
@@ -231,20 +232,29 @@ class TimeSharingScheduler:
         """
         cfg = self.config
         active = self.active
-        self.switched[:] = False
         self.steps += 1
-        self._age += active
-        self._slice += active
-        np.copyto(self.active_energy, energy, where=active)
-        self._batteries += captured & active
-        any_mating = bool(mated_with.max() >= 0)
-        if not (
-            any_mating
-            or died.any()
-            or self._slice.max() >= cfg.time_sharing_steps
-            or self._age.max() >= cfg.lifetime_steps
-        ):
-            return self.switched
+        if scheduler_kernel.AVAILABLE:
+            if not scheduler_kernel.tick(
+                active, self._age, self._slice, self.active_energy, energy, self._batteries,
+                captured, mated_with, died, self.switched, cfg.time_sharing_steps,
+                cfg.lifetime_steps,
+            ):  # fmt: skip
+                return self.switched
+            any_mating = bool(mated_with.max() >= 0)
+        else:
+            self.switched[:] = False
+            self._age += active
+            self._slice += active
+            np.copyto(self.active_energy, energy, where=active)
+            self._batteries += captured & active
+            any_mating = bool(mated_with.max() >= 0)
+            if not (
+                any_mating
+                or died.any()
+                or self._slice.max() >= cfg.time_sharing_steps
+                or self._age.max() >= cfg.lifetime_steps
+            ):
+                return self.switched
         if not active.all() and (died[~active].any() or captured[~active].any()):
             raise ValueError("an event (death or capture) was reported for an idle robot")
         if any_mating:

@@ -555,3 +555,45 @@ def test_ee_quorum_run_counts_late_events_and_finishes() -> None:
     passed = (ee.slot_generation >= 4).sum()
     assert passed >= 90 and ee.slot_generation.size == 100
     assert ee.stats.late >= 0
+
+
+@pytest.mark.parametrize("method", [EmbodiedEvolution, CentralisedEvolution])
+def test_compiled_tick_equals_numpy(method, monkeypatch) -> None:
+    """The compiled per-step bookkeeping (evolution.scheduler_kernel) changes nothing: the same
+    random event stream gives the same switches, ages, statistics and RNG state."""
+    from evolution import scheduler_kernel
+
+    if not scheduler_kernel.AVAILABLE:
+        pytest.skip("numba is not installed")
+
+    def drive(compiled: bool) -> tuple[list[np.ndarray], TimeSharingScheduler]:
+        monkeypatch.setattr(scheduler_kernel, "AVAILABLE", compiled)
+        config = EvolutionConfig(
+            lifetime_steps=30, time_sharing_steps=10, population_size=12, n_robots=4
+        )
+        scheduler = method(config, np.random.default_rng(5))
+        events = np.random.default_rng(6)
+        switches = []
+        for _ in range(600):
+            n = scheduler.n_robots
+            energy = events.uniform(1.0, 200.0, n)
+            died = scheduler.active & (events.random(n) < 0.02)
+            energy[died] = 0.0
+            captured = scheduler.active & ~died & (events.random(n) < 0.05)
+            partner = np.full(n, NO_PARTNER)
+            free = np.flatnonzero(scheduler.active & ~died).tolist()
+            if len(free) >= 2 and events.random() < 0.05:
+                a, b = free[0], free[-1]
+                partner[a], partner[b] = b, a
+            switches.append(scheduler.on_step(energy, died, captured, partner).copy())
+        return switches, scheduler
+
+    fast, a = drive(True)
+    slow, b = drive(False)
+    np.testing.assert_array_equal(np.array(fast), np.array(slow))
+    assert np.array(fast).sum() > 100  # slots ended often: not vacuous
+    np.testing.assert_array_equal(a.active_age, b.active_age)
+    np.testing.assert_array_equal(a.active_energy, b.active_energy)
+    assert pickle.dumps(a.stats) == pickle.dumps(b.stats)
+    assert pickle.dumps(a.slots) == pickle.dumps(b.slots)
+    assert pickle.dumps(a.__dict__) == pickle.dumps(b.__dict__)  # RNGs and spare lists too
