@@ -115,6 +115,15 @@ class BehaviourPolicies:
         #: The fused greedy policies run compiled (:mod:`behaviours.greedy_kernel`).
         self._compiled = self._fused is not None and greedy_kernel.AVAILABLE
 
+    def kernel_arguments(self) -> tuple:
+        """The table arguments of ``greedy_kernel.act`` (between the inputs and the output),
+        for callers that run it inside their own compiled code; () when these policies do not
+        run compiled (not all greedy, or no numba)."""
+        f = self._fused
+        if not self._compiled or f is None:
+            return ()
+        return (f.scale, f.offsets, f._count2, f._strides2, f.base, f.lookup, f.table)
+
     @classmethod
     def load_default(cls) -> BehaviourPolicies:
         """Greedy policies of the shipped trained action values.

@@ -479,11 +479,12 @@ class SurvivalWorld:
             self._begin_numpy(wheels, led, mate, recharge_continue)
             return
         # Recharge decisions of docked robots: "stop" ends the recharge now, before this step.
-        cleared = bool(self.docked.any())
+        stop = self.docked & ~recharge_continue
+        cleared = bool(stop.any())
         if cleared:
             self._check_wheels(wheels)  # an invalid command must change nothing
             self.events.clear()
-            for i in np.flatnonzero(self.docked & ~recharge_continue).tolist():
+            for i in np.flatnonzero(stop).tolist():
                 self._release(i, reflex=True)
                 self._record_end(i, RechargeEnd.DECISION)
         valid, n_recharging, n_reflex = survival_kernel.begin(

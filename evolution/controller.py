@@ -218,6 +218,17 @@ class NeuralController:
         )  # fmt: skip
         return self.behaviour, self.led, self._continue
 
+    @property
+    def proceed(self) -> np.ndarray:
+        """(n,) bool, the latest recharge decisions (True = continue; :meth:`decide`'s third
+        result, a buffer of this controller)."""
+        return self._continue
+
+    def kernel_arguments(self) -> tuple:
+        """The buffers ``controller_kernel.decide`` fills (inputs, activations, behaviour,
+        LED, recharge decision), for callers that run it inside their own compiled code."""
+        return (self.inputs, self.activations, self.behaviour, self.led, self._continue)
+
     def continue_recharge(
         self, weights: np.ndarray, energy: np.ndarray, steps_recharged: np.ndarray
     ) -> np.ndarray:

@@ -431,13 +431,32 @@ class GeometricVision:
             np.zeros(1, dtype=np.int32), np.zeros(n_targets, dtype=np.int64),
         )  # fmt: skip
 
+    def kernel_arguments(self) -> tuple:
+        """The arguments of ``geometric_kernel.gather`` then ``nearest`` (without its three
+        outputs), for callers that run the nearest-target pass inside their own compiled code
+        (``evolution.runner.step_kernel``). Buffers are this provider's; valid while it lives.
+
+        Raises:
+            RuntimeError: if the compiled backend is not in use.
+        """
+        if self.backend != "compiled":
+            raise RuntimeError("kernel_arguments needs the compiled backend")
+        m, d = self.world.model, self.world.data
+        return (
+            d.site_xpos, d.site_xmat, d.geom_xpos, d.geom_xmat,
+            np.asarray(self._cam_site, dtype=np.int64),
+            np.asarray(self.target_geom, dtype=np.int64), m._address, d._address,
+            *self._kernel_poses, self.world.led_on, *self._kernel_rest,
+            *self._kernel_nearest_tail,
+        )  # fmt: skip
+
     def _gather(self) -> None:
         """Copy the camera and target poses into the kernel's input buffers."""
         d, k = self.world.data, self._kernel
-        np.take(d.site_xpos, self._cam_site, axis=0, out=k["cam"])
-        np.take(d.site_xmat, self._cam_site, axis=0, out=k["rot"])
-        np.take(d.geom_xpos, self.target_geom, axis=0, out=k["centre"])
-        np.take(d.geom_xmat, self.target_geom, axis=0, out=k["gmat"])
+        d.site_xpos.take(self._cam_site, axis=0, out=k["cam"])
+        d.site_xmat.take(self._cam_site, axis=0, out=k["rot"])
+        d.geom_xpos.take(self.target_geom, axis=0, out=k["centre"])
+        d.geom_xmat.take(self.target_geom, axis=0, out=k["gmat"])
 
     def _front_numpy(self) -> _Front:
         """The reference implementation of :meth:`_front` (numpy)."""

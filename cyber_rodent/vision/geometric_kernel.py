@@ -34,7 +34,7 @@ import numpy as np
 from cyber_rodent import compiled
 from cyber_rodent.compiled import jit as _jit
 
-__all__ = ["AVAILABLE", "front", "nearest", "unavailable_reason"]
+__all__ = ["AVAILABLE", "front", "gather", "nearest", "unavailable_reason"]
 
 _TWO_PI = 2.0 * math.pi
 
@@ -372,3 +372,24 @@ def nearest(
                     out_distance[i, c] = distance[i, t]
                     out_bearing[i, c] = bearing[i, t]
                     break
+
+
+@_jit
+def gather(
+    site_xpos, site_xmat, geom_xpos, geom_xmat, cam_site, target_geom, cam, rot, centre, gmat
+):
+    """Copy the cameras' poses (``cam`` (n, 3), ``rot`` (n, 9)) and the targets' poses
+    (``centre`` (T, 3), ``gmat`` (T, 9)) out of MuJoCo's data arrays (what
+    ``GeometricVision._gather`` does with ``take``)."""
+    for i in range(cam_site.shape[0]):
+        s = cam_site[i]
+        for k in range(3):
+            cam[i, k] = site_xpos[s, k]
+        for k in range(9):
+            rot[i, k] = site_xmat[s, k]
+    for t in range(target_geom.shape[0]):
+        g = target_geom[t]
+        for k in range(3):
+            centre[t, k] = geom_xpos[g, k]
+        for k in range(9):
+            gmat[t, k] = geom_xmat[g, k]

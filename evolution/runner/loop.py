@@ -53,10 +53,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from behaviours import MATE, BehaviourPolicies
+from behaviours import MATE, BehaviourPolicies, greedy_kernel
 from cyber_rodent.commands import COMMAND_SPEEDS
 from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.vision import BATTERY, FACE, LED, make_provider
+from cyber_rodent.vision.geometric import GeometricVision
+from evolution import controller_kernel
 from evolution.checkpoint import (
     CheckpointError,
     config_fingerprint,
@@ -66,7 +68,8 @@ from evolution.checkpoint import (
     save_checkpoint,
 )
 from evolution.controller import NeuralController
-from evolution.genome import Genome
+from evolution.genome import RECHARGE, SELECTION, Genome
+from evolution.runner import step_kernel
 from evolution.runner.config import RunConfig
 from evolution.runner.events import RECHARGE_END_SWITCHED, EventKind, EventLog
 from evolution.runner.perception import Perception
@@ -252,6 +255,7 @@ class EvolutionRunner:
         self._mate = np.zeros(n, dtype=bool)
         self._led = np.zeros(n, dtype=bool)
         self._holding = np.zeros(n, dtype=bool)
+        self._fused_args: tuple | None = None  # built at the first step (see _fused_arguments)
         self._robots = np.arange(n)
         self._docked_slot = np.zeros(n, dtype=np.intp)
         self._docked_generation = np.zeros(n, dtype=np.int64)
@@ -261,25 +265,12 @@ class EvolutionRunner:
     def step(self) -> bool:
         """One control step for every robot; True if a generation closed in it."""
         survival = self.survival
-        controller = self.controller
-        weights = self._weights
-        perception = self.perception
-        inputs = perception.update()
-        nd = perception.norm_distance
-        behaviour, led, proceed = controller.decide(
-            weights, survival.energy, perception.proximity, nd[:, FACE], nd[:, LED],
-            nd[:, BATTERY], self.world.led_on, inputs.mate_available, inputs.forage_available,
-            survival.recharge_steps,
-        )  # fmt: skip
-        # A robot that keeps recharging runs no behaviour: its LED is dark.
-        holding = self._holding
-        np.logical_and(survival.docked, proceed, out=holding)
-        np.logical_not(holding, out=holding)
-        np.logical_and(led, holding, out=self._led)
-        self.policies.commands(behaviour, inputs, out=self._commands)
-        np.take(COMMAND_SPEEDS, self._commands, axis=0, out=self._wheels)
-        np.equal(behaviour, MATE, out=self._mate)
-        events = survival.step(self._wheels, self._led, self._mate, proceed)
+        fused = self._fused_args
+        if fused is None:
+            fused = self._fused_args = self._fused_arguments()
+        if not fused or step_kernel.sense_decide_act(*fused) != greedy_kernel.OK:
+            self._sense_decide_act()  # the reference path (it raises what the kernel refused)
+        events = survival.step(self._wheels, self._led, self._mate, self.controller.proceed)
         self.steps += 1
         scheduler = self.scheduler
         if events.any:
@@ -296,6 +287,54 @@ class EvolutionRunner:
         if self.scheduler.birth_log:
             self._log_births()
         return self._close_generations()
+
+    def _sense_decide_act(self) -> None:
+        """Perception, controllers, behaviours and wheel speeds, kernel by kernel: the
+        reference of ``step_kernel.sense_decide_act`` and the path for every other setup."""
+        survival = self.survival
+        perception = self.perception
+        inputs = perception.update()
+        nd = perception.norm_distance
+        behaviour, led, proceed = self.controller.decide(
+            self._weights, survival.energy, perception.proximity, nd[:, FACE], nd[:, LED],
+            nd[:, BATTERY], self.world.led_on, inputs.mate_available, inputs.forage_available,
+            survival.recharge_steps,
+        )  # fmt: skip
+        # A robot that keeps recharging runs no behaviour: its LED is dark.
+        holding = self._holding
+        np.logical_and(survival.docked, proceed, out=holding)
+        np.logical_not(holding, out=holding)
+        np.logical_and(led, holding, out=self._led)
+        self.policies.commands(behaviour, inputs, out=self._commands)
+        np.take(COMMAND_SPEEDS, self._commands, axis=0, out=self._wheels)
+        np.equal(behaviour, MATE, out=self._mate)
+
+    def _fused_arguments(self) -> tuple:
+        """The arguments of ``step_kernel.sense_decide_act`` on this runner's buffers, or ()
+        where the setup needs the step-by-step path (rendered or noisy vision, sensor noise,
+        reactive behaviours, no numba)."""
+        vision = self.vision
+        perception = self.perception.kernel_arguments()
+        policies = self.policies.kernel_arguments()
+        if not (
+            step_kernel.AVAILABLE
+            and controller_kernel.AVAILABLE
+            and isinstance(vision, GeometricVision)
+            and vision.backend == "compiled"
+            and perception
+            and policies
+        ):
+            return ()
+        survival, controller = self.survival, self.controller
+        return (
+            *vision.kernel_arguments(),
+            *perception,
+            self._weights, RECHARGE.start, SELECTION.start, survival.energy,
+            survival.recharge_steps, controller.max_energy, controller.max_recharge_steps,
+            *controller.kernel_arguments(),
+            *policies, self._commands,
+            survival.docked, COMMAND_SPEEDS, MATE, self._wheels, self._led, self._mate,
+        )  # fmt: skip
 
     def _load_switched(self, switched: np.ndarray) -> None:
         """Put each switched robot's new agent into the world (or park an idle CE robot)."""
@@ -604,6 +643,7 @@ class EvolutionRunner:
         restore_world(state["world"], self.survival, self.vision)
         self.scheduler = scheduler
         self._weights = scheduler.active_weights
+        self._fused_args = None
         self.events = state["events"]
         self.steps = int(state["steps"])
         self.generation_steps = list(state["generation_steps"])

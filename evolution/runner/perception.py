@@ -99,6 +99,7 @@ class Perception:
             forage_available=np.zeros(n, dtype=bool),
         )
         self._geometric = isinstance(vision, GeometricVision)
+        self._vision_noise = vision.config.noise.enabled  # configs are frozen
         if self._geometric:
             self._prepare_geometric(vision)  # type: ignore[arg-type]
 
@@ -143,10 +144,29 @@ class Perception:
         self._map_inputs()
         return self.inputs
 
+    def kernel_arguments(self) -> tuple:
+        """Perception's part of ``step_kernel.sense_decide_act``'s arguments: the nearest
+        target buffers, then ``perception_kernel.map_inputs``' arguments after them; () where
+        the step-by-step path is needed (rendered or noisy vision, range noise, no numba)."""
+        if not (
+            self._geometric
+            and not self._vision_noise
+            and self.range_noise is None
+            and perception_kernel.AVAILABLE
+        ):
+            return ()
+        inp = self.inputs
+        return (
+            self.bearing, self.distance, self.visible, self._raw, self.world.range_max,
+            self.ranges, self._prox_columns, self._prox_max, self.max_distance, LED, FACE,
+            BATTERY, self.proximity, self._norm_bearing, self.norm_distance, inp.mate,
+            inp.forage, inp.search, inp.mate_available, inp.forage_available,
+        )  # fmt: skip
+
     def _observe_geometric(self) -> None:
         """``GeometricVision.observe`` without the blob lists (see the module docstring)."""
         vision: GeometricVision = self.vision  # type: ignore[assignment]
-        if not vision.config.noise.enabled:
+        if not self._vision_noise:
             # Noise-free (the default): only the nearest target of each class matters, so the
             # occlusion rays are cast lazily (bit-identical to the full pass, see its tests).
             vision.nearest_targets(self.bearing, self.distance, self.visible)
