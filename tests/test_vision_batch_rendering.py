@@ -374,3 +374,17 @@ def test_compiled_views_match_numpy(world, renderers) -> None:
         np.testing.assert_array_equal(cmd0, cmd1)
         np.testing.assert_allclose(clip0, clip1, atol=1e-5)
         np.testing.assert_allclose(head0, head1, atol=1e-6)
+
+
+def test_rendered_vision_picks_its_renderer() -> None:
+    """RenderedVision renders with the batch renderer under EGL (the default), with MuJoCo's on
+    request, and names the allowed renderers for anything else."""
+    from cyber_rodent.vision.rendered import RenderedVision
+
+    world = World(WorldConfig(n_robots=2, n_packs=1))
+    with RenderedVision(world) as vision:
+        assert isinstance(vision.renderer, BatchOmniRenderer)
+    with RenderedVision(world, renderer="mujoco") as vision:
+        assert isinstance(vision.renderer, OmniRenderer)
+    with pytest.raises(ValueError, match="renderer must be one of auto, batch, mujoco"):
+        RenderedVision(world, renderer="vulkan")
