@@ -2,9 +2,9 @@
 
 Prints ``mj_step`` calls per second for the default 4-robot / 5-pack world while the robots drive
 randomly (so there are wall hits and robot-robot contacts), the equivalent control steps per
-second (12 substeps of 1/120 s per 0.1 s control step by default), and the mean number of contacts split by
-kind. Every contact must be of an expected kind: packs and walls are static, so they never touch
-the floor, and chassis never touch the floor.
+second (12 substeps of 1/120 s per 0.1 s control step by default), and the mean number of
+contacts split by kind. Every contact must be of an expected kind: packs and walls are static,
+so they never touch the floor, and chassis never touch the floor.
 
 Run: ``python -m benchmarks.physics_rate [--seconds 60]``
 """
