@@ -72,9 +72,14 @@ from OpenGL.platform import PLATFORM
 
 from cyber_rodent import compiled
 from cyber_rodent.compiled import jit as _jit
-from cyber_rodent.vision.config import MAX_BUFFER_PIXELS, CameraConfig
+from cyber_rodent.vision.config import CameraConfig
 from cyber_rodent.vision.projection import OmniProjection
-from cyber_rodent.vision.rendering import _FAR_CLIP, MAX_BUFFER_SIDE, TESSELLATION, _gl_context
+from cyber_rodent.vision.rendering import (
+    _FAR_CLIP,
+    TESSELLATION,
+    _gl_context,
+    strips_buffer_size,
+)
 from cyber_rodent.world import World
 
 #: Geom groups MuJoCo draws by default (``mjvOption.geomgroup``); group 3 is collision-only.
@@ -621,18 +626,7 @@ class BatchOmniRenderer:
         self.projection = OmniProjection(config)
         n = world.config.n_robots
         self.n_robots = n
-        self.width = config.strip_width
-        self.buffer_height = n * config.height
-        if (
-            self.buffer_height > MAX_BUFFER_SIDE
-            or self.width > MAX_BUFFER_SIDE
-            or self.buffer_height * self.width > MAX_BUFFER_PIXELS
-        ):
-            raise ValueError(
-                f"height={config.height} px × {n} robots = {self.buffer_height} rows (and "
-                f"{self.width} columns) exceed the off-screen buffer (at most {MAX_BUFFER_SIDE} "
-                f"pixels a side, {MAX_BUFFER_PIXELS} in all); lower the camera resolution"
-            )
+        self.width, self.buffer_height = strips_buffer_size(config, n)
         m = world.model
         self._closed = True
         self._lights = self._directional_lights(m)

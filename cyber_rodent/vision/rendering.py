@@ -50,6 +50,22 @@ _FAR_CLIP = 20.0  # m, beyond the field's diagonal from anywhere in it
 TESSELLATION = (16, 4, 1)
 
 
+def strips_buffer_size(config: CameraConfig, n_robots: int) -> tuple[int, int]:
+    """(width, height) of the off-screen buffer holding every robot's strip, one per row band.
+
+    Raises:
+        ValueError: if the strips do not fit one off-screen buffer.
+    """
+    width, height = config.strip_width, n_robots * config.height
+    if height > MAX_BUFFER_SIDE or width > MAX_BUFFER_SIDE or height * width > MAX_BUFFER_PIXELS:
+        raise ValueError(
+            f"height={config.height} px × {n_robots} robots = {height} rows (and {width} "
+            f"columns) exceed the off-screen buffer (at most {MAX_BUFFER_SIDE} pixels a side, "
+            f"{MAX_BUFFER_PIXELS} in all); lower the camera resolution"
+        )
+    return width, height
+
+
 def _gl_context(width: int, height: int):
     """An off-screen GL context of the backend named by ``MUJOCO_GL``."""
     backend = os.environ.get("MUJOCO_GL", "egl").lower()
@@ -79,18 +95,7 @@ class OmniRenderer:
         self.projection = OmniProjection(config)
         n = world.config.n_robots
         self.n_robots = n
-        self.width = config.strip_width
-        self.buffer_height = n * config.height
-        if (
-            self.buffer_height > MAX_BUFFER_SIDE
-            or self.width > MAX_BUFFER_SIDE
-            or self.buffer_height * self.width > MAX_BUFFER_PIXELS
-        ):
-            raise ValueError(
-                f"height={config.height} px × {n} robots = {self.buffer_height} rows (and "
-                f"{self.width} columns) exceed the off-screen buffer (at most {MAX_BUFFER_SIDE} "
-                f"pixels a side, {MAX_BUFFER_PIXELS} in all); lower the camera resolution"
-            )
+        self.width, self.buffer_height = strips_buffer_size(config, n)
         m = world.model
         # The off-screen buffer's size is read from the model when the context is made.
         m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), self.width)
