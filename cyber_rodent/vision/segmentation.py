@@ -170,7 +170,7 @@ class OmniSegmenter:
         order = np.lexsort((np.arange(len(robot)), cls, robot))
         battery = cls == BATTERY
         counts = np.bincount(robot[battery], minlength=n)
-        extents = lab.extents(blobs["n_runs"], bearing) if (counts > 1).any() else None
+        extents = lab.extents(blobs["n_runs"], bearing, BATTERY) if (counts > 1).any() else None
         out: list[list] = [[], [], [], [], [], [], []]  # robot, cls, area, sin, cos, top, bottom
         start = 0
         while start < len(order):

@@ -222,17 +222,24 @@ def _extents(
     run_c0: np.ndarray,
     run_c1: np.ndarray,
     run_comp: np.ndarray,
+    run_cls: np.ndarray,
+    cls: int,
     bearing: np.ndarray,
     column_bearing: np.ndarray,
     half_px: float,
     lo: np.ndarray,
     hi: np.ndarray,
 ) -> None:
-    """Each component's bearing interval relative to its mean (OmniSegmenter._angular_extent):
-    the largest deviation of any of its pixels to either side, plus half a pixel."""
+    """The bearing interval relative to its mean of each component of class ``cls``
+    (OmniSegmenter._angular_extent): the largest deviation of any of its pixels to either side,
+    plus half a pixel. Within a run the columns' bearings fall steadily (a run never crosses
+    the strip's seam, and a blob spans far less than 180°), so a run's extremes are at its two
+    end pixels; only those are evaluated."""
     for i in range(n):
+        if run_cls[i] != cls:
+            continue
         g = run_comp[i]
-        for x in range(run_c0[i], run_c1[i] + 1):
+        for x in (run_c0[i], run_c1[i]):
             d = bearing[g] - column_bearing[x]
             dev = math.atan2(math.sin(d), math.cos(d))
             if dev > lo[g]:
@@ -302,13 +309,14 @@ class Labeller:
             "n_runs": n,
         }
 
-    def extents(self, n_runs: int, bearing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(lo, hi) bearing interval of every component of the last :meth:`label` call."""
+    def extents(self, n_runs: int, bearing: np.ndarray, cls: int) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) bearing interval of every component of class ``cls`` of the last
+        :meth:`label` call (other components: half a pixel either side)."""
         comp_of_run = self._run_components(n_runs)
         lo = np.zeros(len(bearing))
         hi = np.zeros(len(bearing))
         _extents(
-            n_runs, self.run_row, self.run_c0, self.run_c1, comp_of_run,
+            n_runs, self.run_row, self.run_c0, self.run_c1, comp_of_run, self.run_cls, cls,
             np.ascontiguousarray(bearing), self.column_bearing, self.half_px, lo, hi,
         )  # fmt: skip
         return lo, hi
