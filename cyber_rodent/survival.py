@@ -474,30 +474,30 @@ class SurvivalWorld:
         led = self._flags("led", led)
         mate = self._flags("mate", mate)
         recharge_continue = self._flags("recharge_continue", recharge_continue)
-        if not survival_kernel.AVAILABLE:
-            self._check_wheels(wheels)
-            self._begin_numpy(wheels, led, mate, recharge_continue)
-            return
         # Recharge decisions of docked robots: "stop" ends the recharge now, before this step.
+        # An invalid command must change nothing: the numpy path, and a step that undocks
+        # robots, validate first; otherwise the kernel validates before it writes anything.
         stop = self.docked & ~recharge_continue
-        cleared = bool(stop.any())
-        if cleared:
-            self._check_wheels(wheels)  # an invalid command must change nothing
+        checked = bool(stop.any()) or not survival_kernel.AVAILABLE
+        if checked:
+            self._check_wheels(wheels)
             self.events.clear()
             for i in np.flatnonzero(stop).tolist():
                 self._release(i, reflex=True)
                 self._record_end(i, RechargeEnd.DECISION)
-        valid, n_recharging, n_reflex = survival_kernel.begin(
-            wheels, led, mate, self.docked, self.alive, self.reflex_steps_left,
-            self._reflex_wheels, self._inv_wheel_radius, C.TOP_SPEED, self.world.led_on,
-            self._geom_rgba, self._led_geom_array, LED_ON_RGBA, LED_OFF_RGBA, self._ctrl,
-            self._recharging, self._in_reflex, self._mate_signal,
-        )  # fmt: skip
-        if not valid:  # nothing was written
-            self._check_wheels(wheels)
-        if not cleared:
-            self.events.clear()
-        self._n_recharging, self._n_reflex = n_recharging, n_reflex
+        if not survival_kernel.AVAILABLE:
+            self._begin_numpy(wheels, led, mate)
+        else:
+            valid, self._n_recharging, self._n_reflex = survival_kernel.begin(
+                wheels, led, mate, self.docked, self.alive, self.reflex_steps_left,
+                self._reflex_wheels, self._inv_wheel_radius, C.TOP_SPEED, self.world.led_on,
+                self._geom_rgba, self._led_geom_array, LED_ON_RGBA, LED_OFF_RGBA, self._ctrl,
+                self._recharging, self._in_reflex, self._mate_signal,
+            )  # fmt: skip
+            if not valid:  # nothing was written; raise the error that names the problem
+                self._check_wheels(wheels)
+            if not checked:
+                self.events.clear()
         self._mid_step = True
 
     def _check_wheels(self, wheels: np.ndarray) -> None:
@@ -510,19 +510,12 @@ class SurvivalWorld:
                 f"got values from {wheels.min():.4g} to {wheels.max():.4g}"
             )
 
-    def _begin_numpy(
-        self, wheels: np.ndarray, led: np.ndarray, mate: np.ndarray, recharge_continue: np.ndarray
-    ) -> None:
-        """:meth:`begin_step` in numpy: the reference of ``survival_kernel.begin``."""
+    def _begin_numpy(self, wheels: np.ndarray, led: np.ndarray, mate: np.ndarray) -> None:
+        """:meth:`begin_step` after the recharge decisions, in numpy: the reference of
+        ``survival_kernel.begin``."""
         # A handful of numpy calls on (n,) arrays. Rare states (docked, reflex, dead) are
         # counted with count_nonzero (cheap) and handled only when present.
         count = np.count_nonzero
-        self.events.clear()
-        # Recharge decisions of docked robots: "stop" ends the recharge now, before this step.
-        if count(self.docked):
-            for i in np.flatnonzero(self.docked & ~recharge_continue).tolist():
-                self._release(i, reflex=True)
-                self._record_end(i, RechargeEnd.DECISION)
         np.copyto(self._recharging, self.docked)
         np.greater(self.reflex_steps_left, 0, out=self._in_reflex)
         self._n_recharging = count(self._recharging)
@@ -552,7 +545,6 @@ class SurvivalWorld:
         if self._n_recharging or self._n_reflex:
             self._mate_signal &= ~self._recharging
             self._mate_signal &= ~self._in_reflex
-        self._mid_step = True
 
     def end_step(self) -> StepEvents:
         """Second half of :meth:`step`, after the physics has advanced: energy and events."""

@@ -11,12 +11,12 @@ the same segmentation is two steps:
   class ``c``'s HSV box". It is computed once per threshold set *with OpenCV's own*
   ``cvtColor`` and ``inRange``, so a pixel's classes are exactly those of
   ``OmniSegmenter.masks`` (tested), whatever OpenCV's rounding.
-* :func:`label`: one compiled pass over the stacked strips. Each row is classified through the
-  table and cut into runs of same-class pixels; runs are joined with 8-connectivity to runs of
-  the row above and across the strip's left/right seam (union-find, roots = earliest run, so
-  components come in OpenCV's raster order); then every component's pixel statistics are
-  accumulated in the order numpy's ``bincount`` uses on OpenCV's ``findNonZero`` list, so the
-  sums are bit-identical to the reference.
+* :meth:`Labeller.label`: one compiled pass over the stacked strips. Each row is classified
+  through the table and cut into runs of same-class pixels; runs are joined with
+  8-connectivity to runs of the row above and across the strip's left/right seam (union-find,
+  roots = earliest run, so components come in raster order); then every component's pixel
+  statistics are accumulated in the order numpy's ``bincount`` uses on OpenCV's
+  ``findNonZero`` list, so the sums are bit-identical to the reference.
 
 What is done per component afterwards (grouping a pack's two bands, distances) is shared with
 the OpenCV path (:mod:`cyber_rodent.vision.segmentation`).
@@ -32,7 +32,7 @@ import numpy as np
 from cyber_rodent import compiled
 from cyber_rodent.compiled import jit as _jit
 
-__all__ = ["AVAILABLE", "class_lut", "label"]
+__all__ = ["AVAILABLE", "Labeller", "class_lut"]
 
 AVAILABLE = compiled.AVAILABLE
 
@@ -117,8 +117,8 @@ def _label(
     comp_stats: np.ndarray,
     comp_ints: np.ndarray,
 ) -> tuple[int, int]:
-    """The labelling pass; see :func:`label`. Returns (runs, components), or (-1, 0) when a
-    run array is full (the caller retries with room for the worst case)."""
+    """The labelling pass; see :meth:`Labeller.label`. Returns (runs, components), or (-1, 0)
+    when a run array is full (the caller retries with room for the worst case)."""
     rows, width = rgb.shape[0], rgb.shape[1]
     cap = run_row.shape[0]
     n = 0
@@ -218,7 +218,6 @@ def _label(
 @_jit
 def _extents(
     n: int,
-    run_row: np.ndarray,
     run_c0: np.ndarray,
     run_c1: np.ndarray,
     run_comp: np.ndarray,
@@ -252,7 +251,7 @@ def _extents(
 
 
 class Labeller:
-    """Reusable buffers for :func:`label` on strips of one shape.
+    """Reusable buffers for labelling strips of one shape.
 
     Args:
         rows, width: the stacked strips' shape (all robots' rows, strip width).
@@ -287,7 +286,18 @@ class Labeller:
         self.comp_ints = np.empty((capacity, 4), dtype=np.int64)
 
     def label(self, rgb: np.ndarray, lut: tuple[np.ndarray, int]) -> dict[str, np.ndarray]:
-        """Label the class blobs of stacked strips; see :func:`label`."""
+        """Connected class blobs of stacked omni strips, with their pixel statistics.
+
+        Args:
+            rgb: (n_robots * height, strip_width, 3) uint8 C-contiguous RGB.
+            lut: :func:`class_lut` of the classes' thresholds (table and minimum chroma).
+
+        Returns:
+            Per component (ordered by robot, then in each robot by first pixel in raster
+            order): ``robot``, ``cls``, ``top``/``bottom`` (first/last row in the strip),
+            ``area`` (pixels), ``sin_sum``/``cos_sum`` (sums over its pixels of the column
+            bearing's sine and cosine), and ``n_runs`` for :meth:`extents`.
+        """
         while True:
             n, k = _label(
                 rgb, lut[0], lut[1], self.height, self.n_classes, self.sin_col, self.cos_col,
@@ -316,7 +326,7 @@ class Labeller:
         lo = np.zeros(len(bearing))
         hi = np.zeros(len(bearing))
         _extents(
-            n_runs, self.run_row, self.run_c0, self.run_c1, comp_of_run, self.run_cls, cls,
+            n_runs, self.run_c0, self.run_c1, comp_of_run, self.run_cls, cls,
             np.ascontiguousarray(bearing), self.column_bearing, self.half_px, lo, hi,
         )  # fmt: skip
         return lo, hi
@@ -328,22 +338,3 @@ class Labeller:
         is_root = roots == np.arange(n_runs)
         number = np.cumsum(is_root) - 1
         return number[roots]
-
-
-def label(
-    labeller: Labeller, rgb: np.ndarray, lut: tuple[np.ndarray, int]
-) -> dict[str, np.ndarray]:  # pragma: no cover - thin alias kept for the docs
-    """Connected class blobs of stacked omni strips, with their pixel statistics.
-
-    Args:
-        labeller: buffers for this image shape.
-        rgb: (n_robots * height, strip_width, 3) uint8 C-contiguous RGB.
-        lut: :func:`class_lut` of the classes' thresholds (table and minimum chroma).
-
-    Returns:
-        Per component (ordered by robot, then in each robot by first pixel in raster order):
-        ``robot``, ``cls``, ``top``/``bottom`` (first/last row in the strip), ``area``
-        (pixels), ``sin_sum``/``cos_sum`` (sums over its pixels of the column bearing's sine
-        and cosine), and ``n_runs`` for :meth:`Labeller.extents`.
-    """
-    return labeller.label(rgb, lut)

@@ -57,7 +57,6 @@ from behaviours import MATE, BehaviourPolicies, greedy_kernel
 from cyber_rodent.commands import COMMAND_SPEEDS
 from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.vision import BATTERY, FACE, LED, make_provider
-from cyber_rodent.vision.geometric import GeometricVision
 from evolution import controller_kernel
 from evolution.checkpoint import (
     CheckpointError,
@@ -314,15 +313,14 @@ class EvolutionRunner:
         where the setup needs the step-by-step path (rendered or noisy vision, sensor noise,
         reactive behaviours, no numba)."""
         vision = self.vision
-        perception = self.perception.kernel_arguments()
+        perception = self.perception.kernel_arguments()  # () unless geometric, noise-free
         policies = self.policies.kernel_arguments()
         if not (
             step_kernel.AVAILABLE
             and controller_kernel.AVAILABLE
-            and isinstance(vision, GeometricVision)
-            and vision.backend == "compiled"
             and perception
             and policies
+            and vision.backend == "compiled"
         ):
             return ()
         survival, controller = self.survival, self.controller
