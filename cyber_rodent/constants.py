@@ -40,7 +40,7 @@ RANGE_SENSORS: tuple[tuple[str, float, float], ...] = (
     ("range_right", -90.0, 0.3),
 )
 N_RANGE = len(RANGE_SENSORS)
-#: Indices into the 8 range readings of the 5 front + 1 back proximity sensors (DESIGN.md §4).
+#: Indices into the 8 range readings of the 5 front + 1 back proximity sensors (docs/design.md §4).
 PROXIMITY_SIX: tuple[int, ...] = (0, 1, 2, 3, 4, 5)
 
 # Physical numbers that the XML fixes and the code needs (checked against the compiled model in

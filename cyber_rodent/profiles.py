@@ -1,4 +1,4 @@
-"""A hardware-like world profile for sim-to-real studies (paper §4.3, Fig. 7; DESIGN.md §5).
+"""A hardware-like world profile for sim-to-real studies (paper §4.3, Fig. 7; docs/design.md §5).
 
 The paper moved the 5 fittest individuals of a simulated run onto 3 real CRs and observed that
 "sensors were much noisier, behaviours were slower, and one robot was weaker than the others".

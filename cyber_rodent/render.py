@@ -2,7 +2,7 @@
 
 Rendering is real OpenGL through ``mujoco.Renderer`` on a headless context (EGL by default, see
 ``cyber_rodent/__init__.py``). Settings follow what is fast under Mesa's software rasteriser
-(DESIGN.md §6): no shadows, no reflections, no skybox, no anti-aliasing (``offsamples=0`` in the
+(docs/design.md §6): no shadows, no reflections, no skybox, no anti-aliasing (``offsamples=0`` in the
 arena), untextured surfaces. Sites, rangefinder rays and the wheels' collision spheres are hidden.
 """
 

@@ -1,11 +1,11 @@
 """The survival world: virtual energy, docking and recharging, the LED, and IR mating.
 
-This is the paper's survival setting (Elfwing et al., section 3.2 and Table 1; DESIGN.md §5) as
+This is the paper's survival setting (Elfwing et al., section 3.2 and Table 1; docs/design.md §5) as
 mechanics of the simulated world, on top of :class:`cyber_rodent.world.World`:
 
 * **Energy.** Each robot carries the virtual battery of its active agent: it starts at 100,
   is capped at 200 and drains 1 per control step; a step spent recharging adds 5 instead. We
-  read "gains 5 per step" (DESIGN.md §5) as the net change of a recharge step, because the
+  read "gains 5 per step" (docs/design.md §5) as the net change of a recharge step, because the
   paper's numbers fit that reading: 40 steps x 5 = 200, the maximum energy, exactly
   (``decay_while_recharging=True`` gives the other reading, +5 - 1). Energy 0 is death, which
   the world reports once; a dead robot stands still with its LED off until the caller loads
@@ -70,7 +70,7 @@ class RechargeEnd(IntEnum):
 
 @dataclass(frozen=True)
 class SurvivalConfig:
-    """Every rule of the survival world, with the paper's defaults (Table 1, DESIGN.md §5).
+    """Every rule of the survival world, with the paper's defaults (Table 1, docs/design.md §5).
 
     Attributes:
         initial_energy: energy of a newborn agent (paper: 100).
@@ -80,7 +80,7 @@ class SurvivalConfig:
         decay_while_recharging: also drain ``energy_decay`` on recharge steps (net +4 instead of
             +5). Off by default: 40 steps x 5 = 200 = ``max_energy`` is the paper's arithmetic.
         max_recharge_steps: consecutive recharge steps after which recharging ends (paper: 40).
-        control_dt: seconds of simulated time per control step (DESIGN.md §5: 0.1 s); must be a
+        control_dt: seconds of simulated time per control step (docs/design.md §5: 0.1 s); must be a
             whole number of physics timesteps.
         reflex_min_steps: shortest post-recharge rotation reflex, control steps.
         reflex_max_steps: longest reflex; the length is drawn uniformly in [min, max]. At the
@@ -92,9 +92,9 @@ class SurvivalConfig:
             off the robot's centre line, and refuses the glancing contacts of a teeth corner
             further out (16-29°).
         mate_angle_deg: each IR port must face the other port within this angle (paper: about
-            ±15°; DESIGN.md §5).
-        mate_distance: largest IR port-to-port distance for an exchange, m (DESIGN.md: 0.35).
-        mate_consecutive_steps: control steps the mating condition must hold (DESIGN.md: 1).
+            ±15°; docs/design.md §5).
+        mate_distance: largest IR port-to-port distance for an exchange, m (docs/design.md §5: 0.35).
+        mate_consecutive_steps: control steps the mating condition must hold (docs/design.md §5: 1).
     """
 
     initial_energy: float = 100.0

@@ -121,7 +121,7 @@ def build_mjcf(n_robots: int, n_packs: int, timestep: float) -> mjcf.RootElement
         robot.model = f"{C.ROBOT_MODEL_PREFIX}_{i}"
         frame = arena.attach(robot)
         frame.add("freejoint")
-        # Docking hold (issue 4, cyber_rodent/survival.py): an inactive weld of the chassis to
+        # Docking hold (cyber_rodent/survival.py): an inactive weld of the chassis to
         # the world. The survival mechanics switch it on while the robot recharges (setting
         # its relative pose to the pose at docking) and off when recharging ends. Inactive
         # equality constraints cost nothing in the solver.

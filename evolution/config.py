@@ -1,7 +1,7 @@
 """Every number of the paper's evolution, as frozen, validated configuration.
 
 The paper (Elfwing et al., "Biologically Inspired Embodied Evolution of Survival") fixes its
-numbers in two tables; DESIGN.md §5 fixes what the paper leaves open. Each number is a field here
+numbers in two tables; docs/design.md §5 fixes what the paper leaves open. Each number is a field here
 with the paper's value as its default, so a run's behaviour is fully described by its config and
 seed, and any deviation from the paper is an explicit, visible field change.
 
@@ -100,7 +100,7 @@ class GeneticConfig:
 
 @dataclass(frozen=True)
 class EvolutionConfig:
-    """The survival task and population of the evolution (paper Table 1, §3.3, DESIGN.md §5).
+    """The survival task and population of the evolution (paper Table 1, §3.3, docs/design.md §5).
 
     Attributes:
         lifetime_steps: control steps a virtual agent lives if it does not die (paper: 400).
@@ -117,7 +117,7 @@ class EvolutionConfig:
             control steps.
         ce_fitness_requires_survival: in the centralised GA an agent that died scores 0 even if
             it mated. The paper (§2) says a zero fitness "means that a virtual agent dies ... or
-            ... is not able to perform any successful mating"; DESIGN.md §5 only names the
+            ... is not able to perform any successful mating"; docs/design.md §5 only names the
             mating condition. ``True`` follows the paper.
         ee_close_quorum: EE only (our reading; the paper leaves it open, §4.1): the share of
             slots that must have passed generation g before g's statistics row closes and

@@ -1,4 +1,4 @@
-"""The evolved one-layer neural controller (paper §3.5, Fig. 5; DESIGN.md §5).
+"""The evolved one-layer neural controller (paper §3.5, Fig. 5; docs/design.md §5).
 
 It has two parts, both plain weighted sums of inputs in [0, 1]:
 

@@ -1,6 +1,6 @@
 """Selection and reproduction: the EE offspring and replacement rules, and the CE generation.
 
-Embodied evolution (paper §2, DESIGN.md §5) reproduces locally, at the end of one agent's life,
+Embodied evolution (paper §2, docs/design.md §5) reproduces locally, at the end of one agent's life,
 from the genomes that agent collected at its matings:
 
 - :func:`make_offspring` — an agent that lived its full lifetime and mated at least once takes

@@ -10,7 +10,7 @@ the world. This narrow interface lets the rules be tested with scripted event se
 the per-step cost to a handful of vectorised numpy operations on (n_robots,) arrays; Python-level
 work happens only on the rare steps with an event.
 
-Rules (paper §2, §3.3, §4.1; DESIGN.md §5), common to both methods:
+Rules (paper §2, §3.3, §4.1; docs/design.md §5), common to both methods:
 
 - Each robot runs one of its ``subpopulation_size`` agents at a time, in round-robin order,
   starting from slot 0. The active agent's age, energy and batteries are tracked per step.

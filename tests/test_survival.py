@@ -1,7 +1,7 @@
 """Survival rules: hand-computed energy arithmetic, recharge stopping rules, reflex, validation.
 
 Docking here is real (the robot drives its teeth into a pack); the arithmetic after the capture
-is checked against numbers worked out by hand from the paper's rules (Table 1, DESIGN.md §5).
+is checked against numbers worked out by hand from the paper's rules (Table 1, docs/design.md §5).
 """
 
 from __future__ import annotations

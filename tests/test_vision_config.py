@@ -134,5 +134,5 @@ def test_distance_normalisation_hand_cases() -> None:
     d = np.array([0.0, DEFAULT_MAX_DISTANCE / 2, 10.0, 0.5, np.inf])
     visible = np.array([True, True, True, False, False])
     np.testing.assert_allclose(normalise_distance(d, visible), [0.0, 0.5, 1.0, 1.0, 1.0])
-    # An unseen target's distance is 1 whatever the stored distance (DESIGN.md §5).
+    # An unseen target's distance is 1 whatever the stored distance (docs/design.md §5).
     assert normalise_distance(np.array([0.1]), np.array([False]))[0] == 1.0

@@ -28,7 +28,7 @@ name                shape      meaning
 ``recharge_steps``  (k,)       consecutive steps recharged in the current docking
 ==================  =========  ===============================================================
 
-An unseen target has bearing 0, distance ``camera.max_range`` and visible 0 (DESIGN.md §5 maps
+An unseen target has bearing 0, distance ``camera.max_range`` and visible 0 (docs/design.md §5 maps
 an unseen target's normalised distance to 1; ``vision.normalise_distance`` does that).
 
 Actions are a dict: ``wheels`` (k, 2) wheel rim speeds in m/s within the motor limit

@@ -20,7 +20,7 @@ class Mate(CyberRodentTask):
     the task a plain ``dm_env`` environment (no hidden policy inside it), and both robots'
     experience is available to the learner.
 
-    Both robots always signal Mate (they run Mate); their LEDs start on (DESIGN.md §5: the LED
+    Both robots always signal Mate (they run Mate); their LEDs start on (docs/design.md §5: the LED
     is on when Mate wins over Forage), and the ``led`` action sets them from then on. In the
     paper Mate uses bearing and distance of the nearest green LED, or of the red face if no
     LED is seen, and is available only with another robot in view: episodes start (by

@@ -1,6 +1,6 @@
 """The geometric vision provider: what the omni camera would see, computed from poses.
 
-This is the fast path for long evolution runs (DESIGN.md §6). It reports the same quantities
+This is the fast path for long evolution runs (docs/design.md §6). It reports the same quantities
 as the rendered camera, so the two are interchangeable (``benchmarks/vision_agreement.py``
 measures how well they agree):
 

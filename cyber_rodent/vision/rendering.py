@@ -4,7 +4,7 @@ One call of :meth:`OmniRenderer.render` updates the MuJoCo scene once, then rend
 ``n_robots × n_views`` pinhole views as tiles of a single off-screen framebuffer (one
 ``mjr_render`` per tile, each with its own viewport and camera) and reads all pixels back with a
 single ``mjr_readPixels``. Tiling into one buffer avoids a scene update and a pixel read-back
-per camera (DESIGN.md §6: ~35 % cheaper than separate renders). Robot ``i``'s strip is rows
+per camera (docs/design.md §6: ~35 % cheaper than separate renders). Robot ``i``'s strip is rows
 ``i*height … (i+1)*height`` of the buffer, views left to right as in
 :class:`~cyber_rodent.vision.projection.OmniProjection`.
 

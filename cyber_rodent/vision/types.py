@@ -65,13 +65,13 @@ class VisionFrame:
 
 
 def normalise_bearing(bearing: np.ndarray) -> np.ndarray:
-    """Map a bearing in [-π, π] to [0, 1]; straight ahead is 0.5 (DESIGN.md §5)."""
+    """Map a bearing in [-π, π] to [0, 1]; straight ahead is 0.5 (docs/design.md §5)."""
     return np.clip((np.asarray(bearing) + math.pi) / (2 * math.pi), 0.0, 1.0)
 
 
 def normalise_distance(
     distance: np.ndarray, visible: np.ndarray, max_distance: float = DEFAULT_MAX_DISTANCE
 ) -> np.ndarray:
-    """Map a distance to [0, 1]; an unseen target's distance is 1 (DESIGN.md §5)."""
+    """Map a distance to [0, 1]; an unseen target's distance is 1 (docs/design.md §5)."""
     d = np.clip(np.asarray(distance, dtype=float) / max_distance, 0.0, 1.0)
     return np.where(visible, d, 1.0)

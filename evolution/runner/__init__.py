@@ -1,4 +1,4 @@
-"""The evolution runner: EE and CE wired to the physics world (issue 6).
+"""The evolution runner: EE and CE wired to the physics world.
 
 :class:`EvolutionRunner` steps a :class:`~cyber_rodent.survival.SurvivalWorld` with every
 robot's active virtual agent in control, feeds the events to the time-sharing scheduler, records

@@ -6,7 +6,7 @@ controller and a time-sharing scheduler (:class:`~evolution.scheduler.EmbodiedEv
 :class:`~evolution.scheduler.CentralisedEvolution`). Both methods use the same world, population,
 lifetime and time sharing; they differ only in the scheduler.
 
-One control step, for all robots at once (DESIGN.md §3)::
+One control step, for all robots at once (docs/design.md §3)::
 
     range sensors + vision ──► controller inputs ──► behaviour + LED  (or, docked: continue?)
     ──► behaviour policy ──► wheel command ──► SurvivalWorld.step (k physics substeps)

@@ -1,0 +1,84 @@
+"""The one backend switch of the per-step hot path, and the package's one door to numba.
+
+Every per-step rule (vision's nearest targets, input mapping, the controllers, the greedy
+behaviours, the survival mechanics, the scheduler's bookkeeping) exists exactly twice, side by
+side in the ``kernels`` module of the package that owns it: a compiled kernel (numba) and a
+numpy reference with the same signature, which the parity tests compare
+(``tests/test_kernel_parity.py``). Which of the two runs is decided once, when an owner object
+is built (the runner, the survival world, a vision provider), by a ``backend`` argument that it
+passes down to the objects it builds. Nothing checks a module flag inside a method.
+
+Kernels take named buffers (``typing.NamedTuple`` of arrays and scalars, built once by the
+object that owns the data) instead of long positional lists, so that a reordered producer
+cannot bind the wrong array silently. :func:`bind` fixes a kernel's buffers once and returns a
+call without arguments: for a compiled kernel it resolves the machine-code entry point for the
+buffers' types at bind time, so a step pays neither numba's per-call type dispatch nor the
+unboxing of dozens of separate arguments (see ``docs/design.md`` §3).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from typing import Any, Literal, TypeVar, cast
+
+try:
+    import numba
+except ImportError:  # pragma: no cover - numba is a dependency; backend="numpy" still works
+    numba = None
+
+#: The two implementations of every per-step rule.
+Backend = Literal["numba", "numpy"]
+BACKENDS: tuple[Backend, ...] = ("numba", "numpy")
+#: What every owner object uses unless told otherwise.
+DEFAULT_BACKEND: Backend = "numba"
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def check_backend(backend: object) -> Backend:
+    """Return ``backend`` if it is a usable backend name.
+
+    Raises:
+        ValueError: not one of :data:`BACKENDS` (the message lists them), or ``"numba"`` where
+            numba cannot be imported.
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
+    if backend == "numba" and numba is None:  # pragma: no cover - numba is a dependency
+        raise ValueError("backend 'numba' needs numba, which cannot be imported; use 'numpy'")
+    return cast(Backend, backend)
+
+
+def jit(function: F) -> F:
+    """Compile ``function`` with ``numba.njit(cache=True, nogil=True)``.
+
+    Compiled functions are cached on disk next to their source, so a new process pays the
+    compilation once per installation. Without numba the function is returned unchanged (the
+    ``"numba"`` backend is then refused by :func:`check_backend`).
+    """
+    if numba is None:  # pragma: no cover
+        return function
+    return cast(F, numba.njit(cache=True, nogil=True)(function))
+
+
+def pick(backend: Backend, compiled: F, reference: F) -> F:
+    """The compiled kernel for ``"numba"``, the numpy reference for ``"numpy"``."""
+    return compiled if backend == "numba" else reference
+
+
+def bind(kernel: Callable[..., Any], *buffers: Any) -> Callable[[], Any]:
+    """``kernel`` with its arguments fixed: a call without arguments runs it on ``buffers``.
+
+    For a compiled kernel the specialisation for the buffers' types is compiled (or loaded from
+    the cache) now and its entry point is bound, skipping numba's per-call type dispatch. The
+    buffers must keep their types for as long as the bound call is used: owners write into them
+    in place and rebind whenever they replace one.
+    """
+    if numba is not None and isinstance(kernel, numba.core.registry.CPUDispatcher):
+        signature = tuple(numba.typeof(b, numba.core.typing.typeof.Purpose.argument) for b in buffers)
+        return functools.partial(kernel.compile(signature), *buffers)
+    return functools.partial(kernel, *buffers)
+
+
+__all__ = ["BACKENDS", "DEFAULT_BACKEND", "Backend", "bind", "check_backend", "jit", "pick"]

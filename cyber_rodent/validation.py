@@ -1,0 +1,219 @@
+"""One way to validate a configuration field, for every config dataclass of the package.
+
+Every config is a frozen dataclass whose ``__post_init__`` calls :func:`validate_fields`. A
+field declares its rule where it is defined, with :func:`integer`, :func:`number`,
+:func:`boolean` or :func:`choice` in place of a plain default; cross-field constraints (a
+maximum not below a minimum, say) follow in ``__post_init__`` with :func:`check_integer` and
+:func:`check_number` and computed bounds. One rule holds everywhere:
+
+* a bool is never a number, and a number is never a bool;
+* numbers are finite; integers may be numpy integers, numbers numpy floats;
+* a violation raises ``ValueError`` with one line naming the field, the allowed range and the
+  value, e.g. ``max_energy must be a number in (0, 1e+09], got -1``.
+
+The rules are data (``dataclasses.fields(cfg)[i].metadata[RULE]``), so a command that prints a
+config can also print each field's allowed range (:func:`describe`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, TypeVar, cast
+
+import numpy as np
+
+#: Key of a field's rule in its dataclass metadata.
+RULE = "cyber_rodent.rule"
+
+T = TypeVar("T")
+
+
+def _range_text(low: float, high: float, low_open: bool, high_open: bool) -> str:
+    left = "(" if low_open or low == -math.inf else "["
+    right = ")" if high_open or high == math.inf else "]"
+    lo = "-∞" if low == -math.inf else f"{low:g}" if isinstance(low, float) else str(low)
+    hi = "∞" if high == math.inf else f"{high:g}" if isinstance(high, float) else str(high)
+    return f"{left}{lo}, {hi}{right}"
+
+
+def check_integer(name: str, value: object, low: float = -math.inf, high: float = math.inf) -> int:
+    """``value`` as an int if it is an integer (not a bool) in [low, high]; else ValueError."""
+    ok = isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
+    if not ok or not low <= cast(int, value) <= high:
+        raise ValueError(
+            f"{name} must be an integer in {_range_text(low, high, False, False)}, got {value!r}"
+        )
+    return int(cast(int, value))
+
+
+def check_number(
+    name: str,
+    value: object,
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """``value`` as a float if it is a finite number (not a bool) in the range; else ValueError."""
+    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    )
+    if ok:
+        v = float(cast(float, value))
+        ok = math.isfinite(v)
+        ok = ok and (v > low if low_open else v >= low) and (v < high if high_open else v <= high)
+    if not ok:
+        text = _range_text(low, high, low_open, high_open)
+        raise ValueError(f"{name} must be a number in {text}, got {value!r}")
+    return float(cast(float, value))
+
+
+def check_boolean(name: str, value: object) -> bool:
+    """``value`` if it is True or False (not 0, 1 or a string); else ValueError."""
+    if not isinstance(value, bool | np.bool_):
+        raise ValueError(f"{name} must be true or false, got {value!r}")
+    return bool(value)
+
+
+def check_choice(name: str, value: object, choices: Sequence[object]) -> Any:
+    """``value`` if it is one of ``choices``; else ValueError listing them."""
+    if isinstance(value, bool) or value not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(map(str, choices))}, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class IntegerRule:
+    """An integer in [low, high]."""
+
+    low: float = -math.inf
+    high: float = math.inf
+
+    def check(self, name: str, value: object) -> None:
+        check_integer(name, value, self.low, self.high)
+
+    def describe(self) -> str:
+        return f"integer in {_range_text(self.low, self.high, False, False)}"
+
+
+@dataclass(frozen=True)
+class NumberRule:
+    """A finite number in the range (either end may be open)."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+
+    def check(self, name: str, value: object) -> None:
+        check_number(
+            name, value, self.low, self.high, low_open=self.low_open, high_open=self.high_open
+        )
+
+    def describe(self) -> str:
+        return f"number in {_range_text(self.low, self.high, self.low_open, self.high_open)}"
+
+
+@dataclass(frozen=True)
+class BooleanRule:
+    """True or False."""
+
+    def check(self, name: str, value: object) -> None:
+        check_boolean(name, value)
+
+    def describe(self) -> str:
+        return "true or false"
+
+
+@dataclass(frozen=True)
+class ChoiceRule:
+    """One of a fixed set of values."""
+
+    choices: tuple[object, ...]
+
+    def check(self, name: str, value: object) -> None:
+        check_choice(name, value, self.choices)
+
+    def describe(self) -> str:
+        return "one of " + ", ".join(map(str, self.choices))
+
+
+Rule = IntegerRule | NumberRule | BooleanRule | ChoiceRule
+
+
+def integer(default: int, low: float = -math.inf, high: float = math.inf) -> int:
+    """A dataclass field holding an integer in [low, high] (see :func:`validate_fields`)."""
+    return cast(int, dataclasses.field(default=default, metadata={RULE: IntegerRule(low, high)}))
+
+
+def number(
+    default: float,
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """A dataclass field holding a finite number in the range (see :func:`validate_fields`)."""
+    rule = NumberRule(low, high, low_open, high_open)
+    return cast(float, dataclasses.field(default=default, metadata={RULE: rule}))
+
+
+def boolean(default: bool) -> bool:
+    """A dataclass field holding True or False (see :func:`validate_fields`)."""
+    return cast(bool, dataclasses.field(default=default, metadata={RULE: BooleanRule()}))
+
+
+def choice(default: T, choices: Sequence[T]) -> T:
+    """A dataclass field holding one of ``choices`` (see :func:`validate_fields`)."""
+    rule = ChoiceRule(tuple(choices))
+    return cast(T, dataclasses.field(default=default, metadata={RULE: rule}))
+
+
+def validate_fields(config: object, prefix: str = "") -> None:
+    """Check every field of the dataclass ``config`` that declares a rule.
+
+    Args:
+        config: a dataclass instance (call this from its ``__post_init__``).
+        prefix: prepended to field names in messages (e.g. ``"survival."``).
+
+    Raises:
+        ValueError: one line naming the first field that breaks its rule.
+    """
+    for f in dataclasses.fields(cast(Any, config)):
+        rule = f.metadata.get(RULE)
+        if rule is not None:
+            rule.check(prefix + f.name, getattr(config, f.name))
+
+
+def describe(config_type: type, name: str) -> str:
+    """The allowed values of field ``name`` of a config dataclass, in words ("" if no rule)."""
+    for f in dataclasses.fields(config_type):
+        if f.name == name:
+            rule = f.metadata.get(RULE)
+            return rule.describe() if rule is not None else ""
+    raise KeyError(name)
+
+
+__all__ = [
+    "RULE",
+    "BooleanRule",
+    "ChoiceRule",
+    "IntegerRule",
+    "NumberRule",
+    "Rule",
+    "boolean",
+    "check_boolean",
+    "check_choice",
+    "check_integer",
+    "check_number",
+    "choice",
+    "describe",
+    "integer",
+    "number",
+    "validate_fields",
+]
