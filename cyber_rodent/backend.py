@@ -76,7 +76,8 @@ def bind(kernel: Callable[..., Any], *buffers: Any) -> Callable[[], Any]:
     in place and rebind whenever they replace one.
     """
     if numba is not None and isinstance(kernel, numba.core.registry.CPUDispatcher):
-        signature = tuple(numba.typeof(b, numba.core.typing.typeof.Purpose.argument) for b in buffers)
+        purpose = numba.core.typing.typeof.Purpose.argument
+        signature = tuple(numba.typeof(b, purpose) for b in buffers)
         return functools.partial(kernel.compile(signature), *buffers)
     return functools.partial(kernel, *buffers)
 
