@@ -22,6 +22,7 @@ import functools
 from collections.abc import Callable
 from typing import Any, Literal, TypeVar, cast
 
+numba: Any
 try:
     import numba
 except ImportError:  # pragma: no cover - numba is a dependency; backend="numpy" still works
@@ -47,7 +48,7 @@ def check_backend(backend: object) -> Backend:
         raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
     if backend == "numba" and numba is None:  # pragma: no cover - numba is a dependency
         raise ValueError("backend 'numba' needs numba, which cannot be imported; use 'numpy'")
-    return cast(Backend, backend)
+    return backend
 
 
 def jit(function: F) -> F:

@@ -2,8 +2,9 @@
 
 Rendering is real OpenGL through ``mujoco.Renderer`` on a headless context (EGL by default, see
 ``cyber_rodent/__init__.py``). Settings follow what is fast under Mesa's software rasteriser
-(docs/design.md §6): no shadows, no reflections, no skybox, no anti-aliasing (``offsamples=0`` in the
-arena), untextured surfaces. Sites, rangefinder rays and the wheels' collision spheres are hidden.
+(docs/design.md §6): no shadows, no reflections, no skybox, no anti-aliasing
+(``offsamples=0`` in the arena), untextured surfaces. Sites, rangefinder rays and the wheels'
+collision spheres are hidden.
 """
 
 from __future__ import annotations

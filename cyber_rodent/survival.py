@@ -93,8 +93,10 @@ class SurvivalConfig:
             further out (16-29°).
         mate_angle_deg: each IR port must face the other port within this angle (paper: about
             ±15°; docs/design.md §5).
-        mate_distance: largest IR port-to-port distance for an exchange, m (docs/design.md §5: 0.35).
-        mate_consecutive_steps: control steps the mating condition must hold (docs/design.md §5: 1).
+        mate_distance: largest IR port-to-port distance for an exchange, m (docs/design.md
+            §5: 0.35).
+        mate_consecutive_steps: control steps the mating condition must hold (docs/design.md
+            §5: 1).
     """
 
     initial_energy: float = 100.0

@@ -147,7 +147,7 @@ Rule = IntegerRule | NumberRule | BooleanRule | ChoiceRule
 
 def integer(default: int, low: float = -math.inf, high: float = math.inf) -> int:
     """A dataclass field holding an integer in [low, high] (see :func:`validate_fields`)."""
-    return cast(int, dataclasses.field(default=default, metadata={RULE: IntegerRule(low, high)}))
+    return dataclasses.field(default=default, metadata={RULE: IntegerRule(low, high)})
 
 
 def number(
@@ -160,18 +160,18 @@ def number(
 ) -> float:
     """A dataclass field holding a finite number in the range (see :func:`validate_fields`)."""
     rule = NumberRule(low, high, low_open, high_open)
-    return cast(float, dataclasses.field(default=default, metadata={RULE: rule}))
+    return dataclasses.field(default=default, metadata={RULE: rule})
 
 
 def boolean(default: bool) -> bool:
     """A dataclass field holding True or False (see :func:`validate_fields`)."""
-    return cast(bool, dataclasses.field(default=default, metadata={RULE: BooleanRule()}))
+    return dataclasses.field(default=default, metadata={RULE: BooleanRule()})
 
 
 def choice(default: T, choices: Sequence[T]) -> T:
     """A dataclass field holding one of ``choices`` (see :func:`validate_fields`)."""
     rule = ChoiceRule(tuple(choices))
-    return cast(T, dataclasses.field(default=default, metadata={RULE: rule}))
+    return dataclasses.field(default=default, metadata={RULE: rule})
 
 
 def validate_fields(config: object, prefix: str = "") -> None:

@@ -1,9 +1,9 @@
 """Every number of the paper's evolution, as frozen, validated configuration.
 
 The paper (Elfwing et al., "Biologically Inspired Embodied Evolution of Survival") fixes its
-numbers in two tables; docs/design.md §5 fixes what the paper leaves open. Each number is a field here
-with the paper's value as its default, so a run's behaviour is fully described by its config and
-seed, and any deviation from the paper is an explicit, visible field change.
+numbers in two tables; docs/design.md §5 fixes what the paper leaves open. Each number is a
+field here with the paper's value as its default, so a run's behaviour is fully described by
+its config and seed, and any deviation from the paper is an explicit, visible field change.
 
 - :class:`GeneticConfig` is Table 2 (the genome and its operators) plus the CE tournament size
   (§4.1).

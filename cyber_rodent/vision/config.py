@@ -6,8 +6,9 @@ geometric fast path and the rendered camera see the same field of view, range an
 blob). Every number the vision code uses is a field here; the target geometry (LED, face and
 pack sizes, camera height) is read from the compiled MuJoCo model, not repeated.
 
-Field of view (a choice the paper leaves open, docs/design.md §6): the CR's omni camera sees 360° horizontally
-and a limited elevation band. We render ``n_views`` pinhole views (90° each by default) whose
+Field of view (a choice the paper leaves open, docs/design.md §6): the CR's omni camera sees
+360° horizontally and a limited elevation band. We render ``n_views`` pinhole views (90° each
+by default) whose
 image planes are vertical (no tilt) but whose frustum is shifted downwards (a lens shift). An
 untilted sensor keeps every pixel column at one bearing, as the radial lines of a real
 catadioptric omni image do, which makes bearing a pure column lookup. The default band is from
