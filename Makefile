@@ -4,7 +4,7 @@ PY ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint setup
+.PHONY: run test lint typecheck setup
 
 $(STAMP): pyproject.toml .ci/system-deps.sh
 	bash .ci/system-deps.sh
@@ -23,3 +23,6 @@ test: $(STAMP)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check cyber_rodent behaviours evolution tests benchmarks
+
+typecheck: $(STAMP)
+	$(VENV)/bin/mypy

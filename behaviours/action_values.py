@@ -23,10 +23,12 @@ import json
 import os
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from behaviours.tile_coding import TileCoder, TileCoderConfig
+from cyber_rodent.atomic import atomic_output
 
 #: Bump when the file layout or its meaning changes; older files are then rejected.
 FORMAT_VERSION = 1
@@ -73,7 +75,7 @@ class ActionValues:
         coder_config: TileCoderConfig,
         weights: np.ndarray,
         action_names: tuple[str, ...] | None = None,
-        metadata: dict | None = None,
+        metadata: dict[str, Any] | None = None,
     ) -> None:
         w = np.array(weights, dtype=np.float64, copy=True)
         if w.ndim != 2 or w.shape[0] < 1 or w.shape[1] != coder_config.table_size:
@@ -98,7 +100,7 @@ class ActionValues:
     @property
     def n_actions(self) -> int:
         """Number of discrete actions (weight rows)."""
-        return self.weights.shape[0]
+        return int(self.weights.shape[0])
 
     @property
     def checksum(self) -> str:
@@ -125,10 +127,11 @@ class ActionValues:
         except TypeError as err:
             raise ValueError(f"metadata: must be JSON-serialisable ({err})") from err
 
-    def save(self, path: str | os.PathLike, compress: bool = False) -> Path:
-        """Write the values atomically (temp file + rename) and return the path.
+    def save(self, path: str | os.PathLike[str], compress: bool = False) -> Path:
+        """Write the values atomically and return the path.
 
-        The rename means a crash mid-write never leaves a half-written file under the real name.
+        Through :func:`cyber_rodent.atomic.atomic_output`: a crash mid-write never leaves a
+        half-written file under the real name.
 
         Args:
             path: destination ``.npz``.
@@ -140,21 +143,19 @@ class ActionValues:
         if path.suffix != ".npz":
             raise ValueError(f"path: action values are saved as .npz, got {str(path)!r}")
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "wb") as fh:
+        with atomic_output(path) as temp, open(temp, "wb") as fh:
             (np.savez_compressed if compress else np.savez)(
                 fh,
                 weights=self.weights.astype("<f8"),
                 header=np.array(self._header),
                 sha256=np.array(self.checksum),
             )
-        os.replace(tmp, path)
         return path
 
     @classmethod
     def load(
         cls,
-        path: str | os.PathLike,
+        path: str | os.PathLike[str],
         *,
         expect_coder: TileCoderConfig | None = None,
         expect_n_actions: int | None = None,

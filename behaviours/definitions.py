@@ -24,6 +24,7 @@ trained (seed, episodes).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass
 from importlib import resources
@@ -58,19 +59,22 @@ class BehaviourSpec:
     input_names: tuple[str, str]
 
 
-_TARGET_CODER = dict(resolution=(24, 12), n_tilings=8, table_size=8192, wrap=(True, False))
+#: Mate's and Forage's coder, each with its own hash seed.
+_TARGET_CODER = TileCoderConfig(
+    resolution=(24, 12), n_tilings=8, table_size=8192, wrap=(True, False)
+)
 
 SPECS: tuple[BehaviourSpec, ...] = (
     BehaviourSpec(
         "mate",
         MATE,
-        TileCoderConfig(**_TARGET_CODER, seed=MATE + 1),
+        dataclasses.replace(_TARGET_CODER, seed=MATE + 1),
         ("bearing of the nearest LED (else face)", "distance of the nearest LED (else face)"),
     ),
     BehaviourSpec(
         "forage",
         FORAGE,
-        TileCoderConfig(**_TARGET_CODER, seed=FORAGE + 1),
+        dataclasses.replace(_TARGET_CODER, seed=FORAGE + 1),
         ("bearing of the nearest pack", "distance of the nearest pack"),
     ),
     BehaviourSpec(
@@ -97,7 +101,7 @@ def spec(name: str) -> BehaviourSpec:
     )
 
 
-def values_metadata(name: str, **training: object) -> dict:
+def values_metadata(name: str, **training: object) -> dict[str, object]:
     """Metadata stored with a behaviour's trained values (checked when loading)."""
     return {
         "behaviour": name,
@@ -116,13 +120,13 @@ def default_values_dir() -> Path:
     return Path(str(resources.files("behaviours") / "data"))
 
 
-def values_path(name: str, directory: str | os.PathLike | None = None) -> Path:
+def values_path(name: str, directory: str | os.PathLike[str] | None = None) -> Path:
     """Path of behaviour ``name``'s values file in ``directory`` (default: the shipped ones)."""
     spec(name)
     return Path(directory if directory is not None else default_values_dir()) / f"{name}.npz"
 
 
-def load_values(name: str, directory: str | os.PathLike | None = None) -> ActionValues:
+def load_values(name: str, directory: str | os.PathLike[str] | None = None) -> ActionValues:
     """Load and verify behaviour ``name``'s trained action values.
 
     Args:

@@ -85,6 +85,7 @@ from cyber_rodent.profiles import (
     randomised,
 )
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
+from cyber_rodent.validation import integer, number, validate_fields
 from cyber_rodent.vision import CameraConfig, make_provider
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 from cyber_rodent.world import World, WorldConfig
@@ -94,11 +95,6 @@ _ENDLESS_ENERGY = 1e6
 #: Cell side (m) of the grid on which Search's covered area is counted.
 COVERAGE_CELL = 0.1
 _FIELD_HALF = 1.15
-
-
-def _check(name: str, ok: bool, allowed: str, value: object) -> None:
-    if not ok:
-        raise ValueError(f"{name}: must be {allowed}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -117,54 +113,17 @@ class EpisodeConfig:
         max_start_draws: placements drawn for a start condition before giving up.
     """
 
-    max_steps: int = 100
-    goal_reward: float = 1.0
-    step_cost: float = 0.02
-    shaping: float = 1.0
-    gamma: float = 0.98
-    reference_speed: float = 0.5
-    collision_penalty: float = 3.0
-    max_start_draws: int = 500
+    max_steps: int = integer(100, 1, 1_000_000)
+    goal_reward: float = number(1.0, 0.0)
+    step_cost: float = number(0.02, 0.0)
+    shaping: float = number(1.0, 0.0)
+    gamma: float = number(0.98, 0.0, 1.0)
+    reference_speed: float = number(0.5, 0.0, 1.3, low_open=True)
+    collision_penalty: float = number(3.0, 0.0)
+    max_start_draws: int = integer(500, 1)
 
     def __post_init__(self) -> None:
-        _check(
-            "max_steps",
-            isinstance(self.max_steps, int) and 1 <= self.max_steps <= 1_000_000,
-            "an integer in [1, 1000000]",
-            self.max_steps,
-        )
-        _check(
-            "goal_reward",
-            math.isfinite(self.goal_reward) and self.goal_reward >= 0,
-            ">= 0",
-            self.goal_reward,
-        )
-        _check(
-            "step_cost",
-            math.isfinite(self.step_cost) and self.step_cost >= 0,
-            ">= 0",
-            self.step_cost,
-        )
-        _check("shaping", math.isfinite(self.shaping) and self.shaping >= 0, ">= 0", self.shaping)
-        _check("gamma", 0.0 <= self.gamma <= 1.0, "in [0, 1]", self.gamma)
-        _check(
-            "reference_speed",
-            math.isfinite(self.reference_speed) and 0 < self.reference_speed <= 1.3,
-            "in (0, 1.3] m/s",
-            self.reference_speed,
-        )
-        _check(
-            "collision_penalty",
-            math.isfinite(self.collision_penalty) and self.collision_penalty >= 0,
-            ">= 0",
-            self.collision_penalty,
-        )
-        _check(
-            "max_start_draws",
-            isinstance(self.max_start_draws, int) and self.max_start_draws >= 1,
-            "an integer >= 1",
-            self.max_start_draws,
-        )
+        validate_fields(self)
 
 
 def episode_rng(seed: int, episode: int) -> np.random.Generator:
@@ -293,7 +252,7 @@ class BehaviourEpisode:
             RuntimeError: no placement satisfied the start condition.
         """
         if self.profile is not None:
-            self._apply_profile(rng.spawn(1)[0])
+            self._apply_profile(self.profile, rng.spawn(1)[0])
         for _ in range(self.config.max_start_draws):
             self.survival.reset(rng)
             self.world.set_led(self._led)
@@ -325,7 +284,7 @@ class BehaviourEpisode:
             terminal = bool(events.docked[0])
         elif self.behaviour == MATE:
             terminal = bool(events.mate_partner[0] == 1)
-        if self.behaviour == SEARCH:
+        if before is not None:  # Search
             if self.survival.docked[0]:
                 self.survival.end_recharge(0, reflex=False)
             x, y, _ = self.world.poses()[0]
@@ -350,9 +309,9 @@ class BehaviourEpisode:
         return self.world.poses()[0, :2]
 
     # --- internals -----------------------------------------------------------------------------
-    def _apply_profile(self, rng: np.random.Generator) -> None:
+    def _apply_profile(self, profile: HardwareProfile, rng: np.random.Generator) -> None:
         """This episode's hardware: noise magnitudes, camera noise, the robots' drives."""
-        profile = randomised(self.profile, rng) if self.randomise else self.profile
+        profile = randomised(profile, rng) if self.randomise else profile
         self.episode_profile = profile
         if self.vision is not None:
             self.vision.config = dataclasses.replace(
@@ -383,10 +342,11 @@ class BehaviourEpisode:
 
     def _observe(self) -> np.ndarray:
         k = self.n_learners
-        if self.behaviour == SEARCH:
+        vision = self.vision
+        if vision is None:  # Search: proximity only
             ranges = self._ranges()[:k]
             return search_inputs(ranges, self.world.range_max[:k])
-        self._frame = self.vision.observe()
+        self._frame = vision.observe()
         inputs = behaviour_inputs(self._frame, self._ranges(), self.world.range_max)
         return inputs.of(self.behaviour)[:k].copy()
 

@@ -95,7 +95,7 @@ class EvaluationResult:
         """Mean area covered per episode, m²."""
         return float(self.cells.mean()) * COVERAGE_CELL**2
 
-    def summary(self) -> dict:
+    def summary(self) -> dict[str, object]:
         """Plain-dict summary (JSON-safe)."""
         return {
             "behaviour": self.behaviour,

@@ -26,6 +26,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 try:
     import torch
@@ -37,23 +38,23 @@ except ImportError as err:  # pragma: no cover - depends on the installation
 
 from behaviours.action_values import ActionValues
 from behaviours.greedy_policy import GreedyPolicy
-from behaviours.tile_coding import _MASK16, _MASK32, _MIX_MUL_1, _MIX_MUL_2, TileCoder
+from behaviours.tile_coding import MASK16, MASK32, MIX_MUL_1, MIX_MUL_2, TileCoder
 
 #: Name of the JSON description stored next to the program in the ``.pt2`` archive.
 METADATA_FILE = "action_values.json"
 
 
 def _mul32(x: torch.Tensor, constant: int) -> torch.Tensor:
-    lo = constant & _MASK16
+    lo = constant & MASK16
     hi = constant >> 16
-    return (x * lo + (((x * hi) & _MASK16) << 16)) & _MASK32
+    return (x * lo + (((x * hi) & MASK16) << 16)) & MASK32
 
 
 def _mix32(x: torch.Tensor) -> torch.Tensor:
     x = x ^ (x >> 16)
-    x = _mul32(x, _MIX_MUL_1)
+    x = _mul32(x, MIX_MUL_1)
     x = x ^ (x >> 15)
-    x = _mul32(x, _MIX_MUL_2)
+    x = _mul32(x, MIX_MUL_2)
     return x ^ (x >> 16)
 
 
@@ -66,6 +67,12 @@ class TileCodedGreedyPolicy(nn.Module):
     Args:
         values: the learned action values to embed.
     """
+
+    # Registered buffers (typed here: ``nn.Module.__getattr__`` says Tensor | Module).
+    scale: torch.Tensor
+    offsets: torch.Tensor
+    coordinate_count: torch.Tensor
+    tiling_hash: torch.Tensor
 
     def __init__(self, values: ActionValues) -> None:
         super().__init__()
@@ -97,7 +104,8 @@ class TileCodedGreedyPolicy(nn.Module):
             ((states >= 0.0) & (states <= 1.0)).all(),
             "states: every input must be a normalised value in [0, 1] (no NaN)",
         )
-        return self.q_table(self.tile_indices(states))
+        q: torch.Tensor = self.q_table(self.tile_indices(states))  # Module.__call__ is untyped
+        return q
 
     def forward(self, states: torch.Tensor) -> torch.Tensor:
         """Greedy actions (batch,) int64."""
@@ -112,7 +120,7 @@ def _as_values(policy: GreedyPolicy | ActionValues) -> ActionValues:
     raise ValueError(f"policy: need a GreedyPolicy or ActionValues, got {type(policy).__name__}")
 
 
-def export_greedy_policy(policy: GreedyPolicy | ActionValues, path: str | os.PathLike) -> Path:
+def export_greedy_policy(policy: GreedyPolicy | ActionValues, path: str | os.PathLike[str]) -> Path:
     """Export the greedy policy with ``torch.export`` to a ``.pt2`` file.
 
     Args:
@@ -144,7 +152,7 @@ def export_greedy_policy(policy: GreedyPolicy | ActionValues, path: str | os.Pat
     return path
 
 
-def load_exported_policy(path: str | os.PathLike) -> tuple[nn.Module, dict]:
+def load_exported_policy(path: str | os.PathLike[str]) -> tuple[nn.Module, dict[str, Any]]:
     """Load a policy written by :func:`export_greedy_policy`.
 
     Returns:
@@ -168,7 +176,7 @@ def load_exported_policy(path: str | os.PathLike) -> tuple[nn.Module, dict]:
 
 
 def export_behaviour_policies(
-    out_dir: str | os.PathLike, values_dir: str | os.PathLike | None = None
+    out_dir: str | os.PathLike[str], values_dir: str | os.PathLike[str] | None = None
 ) -> dict[str, Path]:
     """Export the greedy policy of every behaviour's trained values as ``<name>.pt2``.
 

@@ -31,12 +31,12 @@ class GreedyPolicy:
         self.coder = values.make_coder()
         # (table_size, n_actions): one row gather per active tile, summed over tilings in tiling
         # order, which is also the order torch's EmbeddingBag sums in.
-        self._table = np.ascontiguousarray(values.weights.T)
+        self.table = np.ascontiguousarray(values.weights.T)
 
     @classmethod
     def from_file(
         cls,
-        path: str | os.PathLike,
+        path: str | os.PathLike[str],
         *,
         expect_coder: TileCoderConfig | None = None,
         expect_n_actions: int | None = None,
@@ -67,7 +67,8 @@ class GreedyPolicy:
         """
         idx = self.coder.indices(states)
         # Reduction over a non-innermost axis: numpy adds the tilings strictly in order.
-        return self._table[idx].sum(axis=-2)
+        q: np.ndarray = self.table[idx].sum(axis=-2)
+        return q
 
     def act(self, states: np.ndarray) -> np.ndarray:
         """Greedy actions of a batch of states.
@@ -78,4 +79,5 @@ class GreedyPolicy:
         Returns:
             int64 array (batch,) of action indices, or a 0-d array for a single state.
         """
-        return np.argmax(self.q_values(states), axis=-1)
+        actions: np.ndarray = np.argmax(self.q_values(states), axis=-1)
+        return actions

@@ -31,19 +31,18 @@ Behaviour indices are the order of the evolved controller's outputs (Mate, Forag
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from cyber_rodent.constants import PROXIMITY_SIX
-from cyber_rodent.vision.types import (
-    BATTERY,
-    DEFAULT_MAX_DISTANCE,
-    FACE,
-    LED,
-    VisionFrame,
-    normalise_bearing,
+from behaviours.kernels import (
+    BehaviourInputs,
+    InputBuffers,
+    InputRules,
+    RangeSensors,
+    map_inputs_reference,
 )
+from cyber_rodent.constants import PROXIMITY_SIX
+from cyber_rodent.vision.kernels import NearestTargets
+from cyber_rodent.vision.types import BATTERY, DEFAULT_MAX_DISTANCE, FACE, LED, VisionFrame
 
 #: Behaviour indices, the order of the evolved controller's three outputs.
 MATE, FORAGE, SEARCH = 0, 1, 2
@@ -55,7 +54,7 @@ N_INPUT_DIMS = 2
 #: mapping is meaningless under another).
 INPUTS_VERSION = 1
 
-_PROXIMITY = np.asarray(PROXIMITY_SIX, dtype=np.intp)
+_PROXIMITY = np.asarray(PROXIMITY_SIX, dtype=np.int64)
 
 
 def behaviour_index(name: str) -> int:
@@ -71,51 +70,11 @@ def behaviour_index(name: str) -> int:
     return BEHAVIOUR_NAMES.index(name)
 
 
-@dataclass(frozen=True)
-class BehaviourInputs:
-    """Every robot's inputs of the three behaviours at one instant, all in [0, 1].
-
-    Attributes:
-        mate: (n, 2) ``[bearing, distance]`` of the nearest green LED, or of the nearest red face
-            if no LED is seen; ``[0.5, 1]`` if neither.
-        forage: (n, 2) ``[bearing, distance]`` of the nearest battery pack; ``[0.5, 1]`` if none.
-        search: (n, 2) ``[largest, second largest]`` of the six proximity readings.
-        mate_available: (n,) bool, another CR is in view (its LED or face is seen).
-        forage_available: (n,) bool, a battery pack is in view.
-    """
-
-    mate: np.ndarray
-    forage: np.ndarray
-    search: np.ndarray
-    mate_available: np.ndarray
-    forage_available: np.ndarray
-
-    @property
-    def n_robots(self) -> int:
-        """Number of robots (rows)."""
-        return self.mate.shape[0]
-
-    def of(self, behaviour: int) -> np.ndarray:
-        """The (n, 2) input array of behaviour index ``behaviour``."""
-        return (self.mate, self.forage, self.search)[behaviour]
-
-
-def proximity(ranges: np.ndarray, range_max: np.ndarray) -> np.ndarray:
-    """Proximity readings ``1 - range / range_max`` in [0, 1] (larger = closer).
-
-    Args:
-        ranges: (n, 8) range readings in metres (``World.range_readings``).
-        range_max: (n, 8) or (8,) each sensor's range in metres.
-
-    Returns:
-        (n, 8) proximities, clipped to [0, 1].
-    """
-    p = 1.0 - np.asarray(ranges, dtype=np.float64) / range_max
-    return np.clip(p, 0.0, 1.0, out=p)
-
-
 def search_inputs(ranges: np.ndarray, range_max: np.ndarray) -> np.ndarray:
     """Search's input: the two largest of the six (5 front + 1 back) proximity readings.
+
+    The same rule as :func:`behaviour_inputs` (one mapping,
+    :func:`behaviours.kernels.map_inputs_reference`), for callers that need only Search's.
 
     Args:
         ranges: (n, 8) range readings in metres.
@@ -125,19 +84,8 @@ def search_inputs(ranges: np.ndarray, range_max: np.ndarray) -> np.ndarray:
         (n, 2) ``[largest, second largest]`` proximity, in [0, 1].
     """
     ranges = np.asarray(ranges, dtype=np.float64)
-    range_max = np.asarray(range_max, dtype=np.float64)
-    if ranges.ndim != 2 or ranges.shape[1] <= _PROXIMITY.max():
-        raise ValueError(f"ranges: expected shape (n_robots, 8), got {ranges.shape}")
-    if range_max.ndim == 2:
-        range_max = range_max[:, _PROXIMITY]
-    else:
-        range_max = range_max[_PROXIMITY]
-    if not (range_max > 0).all():
-        raise ValueError("range_max: every sensor range must be > 0 m")
-    p = proximity(ranges[:, _PROXIMITY], range_max)
-    p.sort(axis=1)
-    return p[:, :-3:-1].copy()
-
+    n = ranges.shape[0] if ranges.ndim == 2 else 0
+    return behaviour_inputs(VisionFrame.empty(n), ranges, range_max).search
 
 def behaviour_inputs(
     frame: VisionFrame,
@@ -160,23 +108,57 @@ def behaviour_inputs(
         ValueError: if the shapes of ``frame`` and ``ranges`` disagree.
     """
     n = frame.visible.shape[0]
-    if np.shape(ranges)[0] != n:
+    ranges = np.asarray(ranges, dtype=np.float64)
+    if ranges.shape[0] != n:
         raise ValueError(
-            f"ranges: expected one row per robot of the frame ({n}), got {np.shape(ranges)}"
+            f"ranges: expected one row per robot of the frame ({n}), got {ranges.shape}"
         )
-    visible = frame.visible
-    # (n, 3 classes, [bearing, distance]) for all classes at once; unseen: [0.5, 1].
-    target = np.empty((n, 3, 2))
-    np.copyto(target[:, :, 0], normalise_bearing(frame.bearing))
-    target[:, :, 0][~visible] = 0.5
-    np.divide(frame.distance, max_distance, out=target[:, :, 1])
-    np.clip(target[:, :, 1], 0.0, 1.0, out=target[:, :, 1])
-    target[:, :, 1][~visible] = 1.0
-    led_seen = visible[:, LED]
-    return BehaviourInputs(
-        mate=np.where(led_seen[:, None], target[:, LED], target[:, FACE]),
-        forage=target[:, BATTERY].copy(),
-        search=search_inputs(ranges, range_max),
-        mate_available=led_seen | visible[:, FACE],
-        forage_available=visible[:, BATTERY].copy(),
+    if ranges.ndim != 2 or ranges.shape[1] <= _PROXIMITY.max():
+        raise ValueError(f"ranges: expected shape (n_robots, 8), got {ranges.shape}")
+    range_max = np.broadcast_to(np.asarray(range_max, dtype=np.float64), ranges.shape)
+    if not (range_max[:, _PROXIMITY] > 0).all():
+        raise ValueError("range_max: every sensor range must be > 0 m")
+    visible = np.asarray(frame.visible, dtype=bool)
+    # The vision's convention for an unseen target (bearing 0, distance inf) maps to [0.5, 1].
+    nearest = NearestTargets(
+        bearing=np.where(visible, frame.bearing, 0.0),
+        distance=np.where(visible, frame.distance, np.inf),
+        visible=visible,
     )
+    inputs = BehaviourInputs(
+        mate=np.empty((n, 2)),
+        forage=np.empty((n, 2)),
+        search=np.empty((n, 2)),
+        mate_available=np.empty(n, dtype=bool),
+        forage_available=np.empty(n, dtype=bool),
+    )
+    sensors = RangeSensors(
+        raw=ranges,
+        range_max=range_max,
+        ranges=np.empty_like(ranges),
+        proximity_columns=_PROXIMITY,
+        proximity_max=np.ascontiguousarray(range_max[:, _PROXIMITY]),
+    )
+    buffers = InputBuffers(
+        proximity=np.empty((n, len(_PROXIMITY))),
+        norm_bearing=np.empty((n, 3)),
+        norm_distance=np.empty((n, 3)),
+        behaviour=inputs,
+    )
+    map_inputs_reference(sensors, nearest, InputRules(max_distance, LED, FACE, BATTERY), buffers)
+    return inputs
+
+
+__all__ = [
+    "BEHAVIOUR_NAMES",
+    "FORAGE",
+    "INPUTS_VERSION",
+    "MATE",
+    "N_BEHAVIOURS",
+    "N_INPUT_DIMS",
+    "SEARCH",
+    "BehaviourInputs",
+    "behaviour_index",
+    "behaviour_inputs",
+    "search_inputs",
+]

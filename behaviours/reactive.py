@@ -21,12 +21,12 @@ fields with documented defaults (chosen by hand on the physics world, not tuned 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from cyber_rodent.commands import command_index
+from cyber_rodent.validation import check_number, number, validate_fields
 from cyber_rodent.vision.types import DEFAULT_MAX_DISTANCE
 
 _FORWARD = command_index("forward")
@@ -36,11 +36,6 @@ _ARC_RIGHT = command_index("arc_right")
 _SPIN_LEFT = command_index("spin_left")
 _SPIN_RIGHT = command_index("spin_right")
 _STOP = command_index("stop")
-
-
-def _check_range(name: str, value: float, lo: float, hi: float) -> None:
-    if not (isinstance(value, int | float) and math.isfinite(value) and lo <= value <= hi):
-        raise ValueError(f"{name}: must be in [{lo}, {hi}], got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -55,18 +50,17 @@ class ApproachConfig:
         max_distance: m, the distance normalised to 1 (the inputs' convention).
     """
 
-    spin_deg: float = 25.0
-    arc_deg: float = 6.0
-    slow_distance: float = 0.6
-    stop_distance: float = 0.0
-    max_distance: float = DEFAULT_MAX_DISTANCE
+    spin_deg: float = number(25.0, 0.0, 180.0)
+    arc_deg: float = number(6.0, 0.0, 180.0)
+    slow_distance: float = number(0.6, 0.0, 100.0)
+    stop_distance: float = number(0.0, 0.0, 100.0)
+    max_distance: float = number(DEFAULT_MAX_DISTANCE, 1e-3, 100.0)
 
     def __post_init__(self) -> None:
-        _check_range("spin_deg", self.spin_deg, 0.0, 180.0)
-        _check_range("arc_deg", self.arc_deg, 0.0, self.spin_deg)
-        _check_range("max_distance", self.max_distance, 1e-3, 100.0)
-        _check_range("slow_distance", self.slow_distance, 0.0, self.max_distance)
-        _check_range("stop_distance", self.stop_distance, 0.0, self.max_distance)
+        validate_fields(self)
+        check_number("arc_deg", self.arc_deg, 0.0, self.spin_deg)
+        check_number("slow_distance", self.slow_distance, 0.0, self.max_distance)
+        check_number("stop_distance", self.stop_distance, 0.0, self.max_distance)
 
 
 @dataclass(frozen=True)
@@ -78,12 +72,12 @@ class AvoidConfig:
         spin_proximity: spin left on the spot when it exceeds this.
     """
 
-    turn_proximity: float = 0.2
-    spin_proximity: float = 0.45
+    turn_proximity: float = number(0.2, 0.0, 1.0)
+    spin_proximity: float = number(0.45, 0.0, 1.0)
 
     def __post_init__(self) -> None:
-        _check_range("spin_proximity", self.spin_proximity, 0.0, 1.0)
-        _check_range("turn_proximity", self.turn_proximity, 0.0, self.spin_proximity)
+        validate_fields(self)
+        check_number("turn_proximity", self.turn_proximity, 0.0, self.spin_proximity)
 
 
 class ReactiveApproach:

@@ -32,11 +32,13 @@ common Q table: each keeps its own traces and exploration, and both update the s
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Literal, overload
 
 import numpy as np
 
 from behaviours.action_values import ActionValues
 from behaviours.tile_coding import TileCoder
+from cyber_rodent.validation import boolean, number, validate_fields
 
 
 @dataclass(frozen=True)
@@ -57,24 +59,15 @@ class SarsaConfig:
             features (Sutton & Barto 1998, §7.8).
     """
 
-    alpha: float = 0.1
-    gamma: float = 0.95
-    lam: float = 0.9
-    epsilon: float = 0.1
-    trace_cutoff: float = 1e-3
-    clear_other_action_traces: bool = True
+    alpha: float = number(0.1, 0.0, 1.0, low_open=True)
+    gamma: float = number(0.95, 0.0, 1.0)
+    lam: float = number(0.9, 0.0, 1.0)
+    epsilon: float = number(0.1, 0.0, 1.0)
+    trace_cutoff: float = number(1e-3, 0.0, 1.0, low_open=True, high_open=True)
+    clear_other_action_traces: bool = boolean(True)
 
     def __post_init__(self) -> None:
-        checks = (
-            ("alpha", 0.0 < self.alpha <= 1.0, "(0, 1]"),
-            ("gamma", 0.0 <= self.gamma <= 1.0, "[0, 1]"),
-            ("lam", 0.0 <= self.lam <= 1.0, "[0, 1]"),
-            ("epsilon", 0.0 <= self.epsilon <= 1.0, "[0, 1]"),
-            ("trace_cutoff", 0.0 < self.trace_cutoff < 1.0, "(0, 1)"),
-        )
-        for name, ok, allowed in checks:
-            if not ok:  # also false for NaN
-                raise ValueError(f"{name}: must be in {allowed}, got {getattr(self, name)}")
+        validate_fields(self)
 
 
 def epsilon_greedy(q: np.ndarray, epsilon: float, rng: np.random.Generator) -> int:
@@ -160,9 +153,12 @@ class SarsaLambda:
         return self._q(self.coder.indices(state))
 
     def _q(self, features: np.ndarray) -> np.ndarray:
-        return self.weights[:, features].sum(axis=1)
+        q: np.ndarray = self.weights[:, features].sum(axis=1)
+        return q
 
-    def action_values(self, action_names=None, metadata: dict | None = None) -> ActionValues:
+    def action_values(
+        self, action_names: tuple[str, ...] | None = None, metadata: dict[str, Any] | None = None
+    ) -> ActionValues:
         """An immutable snapshot of the current weights, ready to save or act greedily on."""
         return ActionValues(self.coder.config, self.weights, action_names, metadata)
 
@@ -186,7 +182,19 @@ class SarsaLambda:
         self._visit(features, action)
         return action
 
-    def step(self, reward: float, next_state: np.ndarray, terminal: bool = False) -> int | None:
+    @overload
+    def step(
+        self, reward: float, next_state: np.ndarray, terminal: Literal[False] = False
+    ) -> int: ...
+
+    @overload
+    def step(
+        self, reward: float, next_state: np.ndarray | None, terminal: Literal[True]
+    ) -> None: ...
+
+    def step(
+        self, reward: float, next_state: np.ndarray | None, terminal: bool = False
+    ) -> int | None:
         """Learn from one transition and choose the next action.
 
         Args:
@@ -199,6 +207,7 @@ class SarsaLambda:
 
         Raises:
             RuntimeError: called before :meth:`begin_episode` or after a terminal step.
+            ValueError: a non-finite reward, or no ``next_state`` for a non-terminal step.
         """
         if self._features is None:
             raise RuntimeError("step() needs an episode: call begin_episode() first")
@@ -213,6 +222,8 @@ class SarsaLambda:
             self._active = np.empty(0, dtype=np.int64)
             self._features = None
             return None
+        if next_state is None:
+            raise ValueError("next_state: a non-terminal step needs the state reached")
         features = self.coder.indices(next_state)
         q_next = self._q(features)
         action = epsilon_greedy(q_next, self.config.epsilon, self.rng)

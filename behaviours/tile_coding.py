@@ -36,18 +36,22 @@ Design choices (the paper gives none of these):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+
+from cyber_rodent.validation import integer, validate_fields
 
 #: Version of the hash and offset scheme. Saved with action values: a table trained under one
 #: scheme is meaningless under another, so loading checks it.
 HASH_VERSION = 1
 
-_MASK32 = 0xFFFFFFFF
-_MASK16 = 0xFFFF
+#: Low 32 and 16 bits (the hash works on unsigned 32-bit values held in int64).
+MASK32 = 0xFFFFFFFF
+MASK16 = 0xFFFF
 #: Multipliers of Chris Wellons' ``lowbias32`` integer hash (a well-tested 32-bit mixer).
-_MIX_MUL_1 = 0x7FEB352D
-_MIX_MUL_2 = 0x846CA68B
+MIX_MUL_1 = 0x7FEB352D
+MIX_MUL_2 = 0x846CA68B
 #: Lookup tables larger than this many entries are not precomputed (hash on the fly instead).
 _MAX_LOOKUP_ENTRIES = 1 << 22
 
@@ -58,9 +62,10 @@ def _mul32(x: np.ndarray, constant: int) -> np.ndarray:
     The constant is split into 16-bit halves so that every partial product is below 2**49; the
     same formula runs unchanged on torch int64 tensors (torch has no uint32 multiply).
     """
-    lo = constant & _MASK16
+    lo = constant & MASK16
     hi = constant >> 16
-    return (x * lo + (((x * hi) & _MASK16) << 16)) & _MASK32
+    product: np.ndarray = (x * lo + (((x * hi) & MASK16) << 16)) & MASK32
+    return product
 
 
 def mix32(x: np.ndarray) -> np.ndarray:
@@ -75,10 +80,11 @@ def mix32(x: np.ndarray) -> np.ndarray:
         int64 array, same shape, values in [0, 2**32).
     """
     x = x ^ (x >> 16)
-    x = _mul32(x, _MIX_MUL_1)
+    x = _mul32(x, MIX_MUL_1)
     x = x ^ (x >> 15)
-    x = _mul32(x, _MIX_MUL_2)
-    return x ^ (x >> 16)
+    x = _mul32(x, MIX_MUL_2)
+    mixed: np.ndarray = x ^ (x >> 16)
+    return mixed
 
 
 @dataclass(frozen=True)
@@ -93,15 +99,16 @@ class TileCoderConfig:
         table_size: size of the hashed feature table (1 to 2**31). Large enough that collisions
             between reachable tiles are rare; a 2-D input at resolution 10 with 8 tilings touches
             ≤ 8 × 11 × 11 = 968 tiles, so 4096 keeps collisions small.
-        wrap: per dimension, whether it is periodic (0 ≡ 1), e.g. a bearing. Default: none.
+        wrap: per dimension, whether it is periodic (0 ≡ 1), e.g. a bearing. Default (empty):
+            none.
         seed: hash seed in [0, 2**32). Different seeds give independent hash layouts.
     """
 
     resolution: tuple[int, ...]
-    n_tilings: int = 8
-    table_size: int = 4096
-    wrap: tuple[bool, ...] | None = None
-    seed: int = 0
+    n_tilings: int = integer(8, 1, 1024)
+    table_size: int = integer(4096, 1, 2**31)
+    wrap: tuple[bool, ...] = ()
+    seed: int = integer(0, 0, 2**32 - 1)
 
     def __post_init__(self) -> None:
         resolution = tuple(int(r) for r in self.resolution)
@@ -110,27 +117,20 @@ class TileCoderConfig:
         if any(r < 1 or r > 1_000_000 for r in resolution):
             raise ValueError(f"resolution: every entry must be in [1, 1000000], got {resolution}")
         object.__setattr__(self, "resolution", resolution)
-        wrap = (
-            (False,) * len(resolution) if self.wrap is None else tuple(bool(w) for w in self.wrap)
-        )
+        wrap = tuple(bool(w) for w in self.wrap) if self.wrap else (False,) * len(resolution)
         if len(wrap) != len(resolution):
             raise ValueError(
                 f"wrap: need one flag per input dimension ({len(resolution)}), got {len(wrap)}"
             )
         object.__setattr__(self, "wrap", wrap)
-        if not 1 <= self.n_tilings <= 1024:
-            raise ValueError(f"n_tilings: must be in [1, 1024], got {self.n_tilings}")
-        if not 1 <= self.table_size <= 2**31:
-            raise ValueError(f"table_size: must be in [1, 2**31], got {self.table_size}")
-        if not 0 <= self.seed < 2**32:
-            raise ValueError(f"seed: must be in [0, 2**32), got {self.seed}")
+        validate_fields(self)
 
     @property
     def n_dims(self) -> int:
         """Number of input dimensions."""
         return len(self.resolution)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """Plain-dict form (JSON-safe), saved alongside action values."""
         return {
             "resolution": list(self.resolution),
@@ -142,7 +142,7 @@ class TileCoderConfig:
         }
 
     @classmethod
-    def from_dict(cls, data: dict) -> TileCoderConfig:
+    def from_dict(cls, data: dict[str, Any]) -> TileCoderConfig:
         """Inverse of :meth:`to_dict`; rejects a table hashed under another scheme."""
         version = data.get("hash_version")
         if version != HASH_VERSION:
@@ -208,6 +208,22 @@ class TileCoder:
             self._tiling_base = np.arange(n, dtype=np.int64) * per_tiling
 
     @property
+    def lookup(self) -> np.ndarray | None:
+        """Precomputed hash of every tile (flat tile index -> table row), or None if the
+        coder hashes on the fly."""
+        return self._lookup
+
+    @property
+    def strides(self) -> np.ndarray:
+        """Flat-tile-index stride of each dimension (with a precomputed :attr:`lookup`)."""
+        return self._strides
+
+    @property
+    def tiling_base(self) -> np.ndarray:
+        """Where each tiling's block starts in :attr:`lookup`."""
+        return self._tiling_base
+
+    @property
     def n_tilings(self) -> int:
         """Active features per state."""
         return self.config.n_tilings
@@ -247,6 +263,7 @@ class TileCoder:
         """
         x, single = self._check(states)
         coords = self._coordinates(x)
+        out: np.ndarray
         if self._lookup is not None:
             flat = coords @ self._strides + self._tiling_base
             out = self._lookup[flat]

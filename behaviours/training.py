@@ -10,7 +10,7 @@ physics episodes (:mod:`behaviours.episodes`) and writes, in ``out_dir``:
   (return of robot 0, steps, success, steps in contact with an obstacle) and its moving
   averages;
 * ``<name>_checkpoint.npz``: the resumable state (weights, every generator's state, the curve),
-  written atomically (temporary file, fsync, rename) every ``checkpoint_every`` episodes and at
+  written atomically (:mod:`cyber_rodent.atomic`) every ``checkpoint_every`` episodes and at
   the end, so an interrupted run resumes with ``resume=True`` and finishes with exactly the
   values an uninterrupted run would have.
 
@@ -33,6 +33,7 @@ import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -42,8 +43,10 @@ from behaviours.episodes import BehaviourEpisode, EpisodeConfig, episode_rng
 from behaviours.inputs import BEHAVIOUR_NAMES
 from behaviours.sarsa import SarsaConfig, SarsaLambda
 from behaviours.tile_coding import TileCoder
+from cyber_rodent.atomic import atomic_output
 from cyber_rodent.commands import COMMAND_NAMES, N_COMMANDS
 from cyber_rodent.profiles import HardwareProfile
+from cyber_rodent.validation import integer, validate_fields
 
 #: Episodes a full training run of each behaviour uses by default (what the shipped values
 #: were trained with).
@@ -72,10 +75,11 @@ class TrainingConfig:
         default_factory=lambda: SarsaConfig(alpha=0.1, gamma=0.98, lam=0.9, epsilon=0.1)
     )
     episode: EpisodeConfig = field(default_factory=EpisodeConfig)
-    checkpoint_every: int = 100
-    curve_window: int = 50
+    checkpoint_every: int = integer(100, 1)
+    curve_window: int = integer(50, 1)
 
     def __post_init__(self) -> None:
+        validate_fields(self)
         if not isinstance(self.sarsa, SarsaConfig):
             raise ValueError(f"sarsa: must be a SarsaConfig, got {type(self.sarsa).__name__}")
         if not isinstance(self.episode, EpisodeConfig):
@@ -87,12 +91,8 @@ class TrainingConfig:
                 f"episode.gamma: the shaping discount must equal sarsa.gamma "
                 f"({self.sarsa.gamma}), got {self.episode.gamma}"
             )
-        for name in ("checkpoint_every", "curve_window"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"{name}: must be an integer >= 1, got {v!r}")
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """Plain-dict form (JSON), stored in checkpoints to refuse resuming another config."""
         return {"sarsa": asdict(self.sarsa), "episode": asdict(self.episode)}
 
@@ -158,10 +158,11 @@ def _digest(header: str, weights: np.ndarray, curve: np.ndarray) -> str:
     return h.hexdigest()
 
 
-def _write_checkpoint(path: Path, state: dict, weights: np.ndarray, curve: np.ndarray) -> None:
+def _write_checkpoint(
+    path: Path, state: dict[str, Any], weights: np.ndarray, curve: np.ndarray
+) -> None:
     header = json.dumps(state, sort_keys=True)
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as fh:
+    with atomic_output(path) as temp, open(temp, "wb") as fh:
         np.savez(
             fh,
             weights=weights.astype("<f8"),
@@ -169,12 +170,9 @@ def _write_checkpoint(path: Path, state: dict, weights: np.ndarray, curve: np.nd
             header=np.array(header),
             sha256=np.array(_digest(header, weights, curve)),
         )
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
 
 
-def _read_checkpoint(path: Path) -> tuple[dict, np.ndarray, np.ndarray]:
+def _read_checkpoint(path: Path) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
     try:
         with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as data:
             weights = np.array(data["weights"])
@@ -193,17 +191,22 @@ def _read_checkpoint(path: Path) -> tuple[dict, np.ndarray, np.ndarray]:
 # --- curves ---------------------------------------------------------------------------------------
 def _write_curve(curve: np.ndarray, csv_path: Path, png_path: Path, name: str, window: int) -> None:
     header = ",".join(CURVE_COLUMNS)
-    tmp = csv_path.with_name(csv_path.name + ".tmp")
-    np.savetxt(
-        tmp, curve, delimiter=",", header=header, comments="", fmt=["%d", "%.6g", "%d", "%d", "%d"]
-    )
-    os.replace(tmp, csv_path)
+    with atomic_output(csv_path) as temp:
+        np.savetxt(
+            temp,
+            curve,
+            delimiter=",",
+            header=header,
+            comments="",
+            fmt=["%d", "%.6g", "%d", "%d", "%d"],
+        )
 
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    panels: tuple[tuple[int, str], ...]
     if name == "search":  # no goal: the measures are return and contacts
         panels = ((1, "return (robot 0)"), (4, "steps in contact per episode"))
     else:
@@ -220,10 +223,11 @@ def _write_curve(curve: np.ndarray, csv_path: Path, png_path: Path, name: str, w
         ax.set_title(f"{label} (moving avg {w})", fontsize=9)
     fig.suptitle(f"{name}: Sarsa(λ) learning curve")
     fig.tight_layout()
-    tmp = png_path.with_name(png_path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=90)
-    plt.close(fig)
-    os.replace(tmp, png_path)
+    try:
+        with atomic_output(png_path) as temp:
+            fig.savefig(temp, dpi=90)
+    finally:
+        plt.close(fig)
 
 
 # --- training -------------------------------------------------------------------------------------
@@ -231,7 +235,7 @@ def train(
     behaviour: str,
     episodes: int | None = None,
     seed: int = 0,
-    out_dir: str | os.PathLike = "runs/behaviours",
+    out_dir: str | os.PathLike[str] = "runs/behaviours",
     resume: bool = False,
     progress: bool = True,
     config: TrainingConfig | None = None,
@@ -404,7 +408,7 @@ def train(
     )
 
 
-def _final_training_measures(behaviour: str, curve: np.ndarray) -> dict:
+def _final_training_measures(behaviour: str, curve: np.ndarray) -> dict[str, float]:
     """Mean of the last 200 training episodes (ε-greedy), recorded in the values' metadata."""
     tail = curve[-200:]
     if behaviour == "search":
@@ -415,7 +419,7 @@ def _final_training_measures(behaviour: str, curve: np.ndarray) -> dict:
 def train_all(
     episodes: int | None = None,
     seed: int = 0,
-    out_dir: str | os.PathLike = "runs/behaviours",
+    out_dir: str | os.PathLike[str] = "runs/behaviours",
     resume: bool = False,
     progress: bool = True,
 ) -> dict[str, TrainingResult]:

@@ -98,7 +98,6 @@ def _scaling_world(n_robots: int, n_packs: int, steps: int, seed: int) -> dict:
     start_state = mujoco.MjData(m)
     mujoco.mj_copyData(start_state, m, d)
     vision = GeometricVision(world)
-    out = np.zeros((n_robots, 3)), np.zeros((n_robots, 3)), np.zeros((n_robots, 3), dtype=bool)
     clock = time.perf_counter
     physics = 0.0
     t0 = clock()
@@ -108,7 +107,7 @@ def _scaling_world(n_robots: int, n_packs: int, steps: int, seed: int) -> dict:
         survival.advance_physics()  # rangefinders in the last substep only
         physics += clock() - t1
         survival.end_step()
-        vision.nearest_targets(*out)
+        vision.nearest_targets()
         world.range_readings()
     lean = clock() - t0
     # Raw physics alone from the same start (its own trajectory: same commands, no mechanics),

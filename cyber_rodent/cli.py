@@ -10,7 +10,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pandas is slow to import; ``--help`` must stay fast
+    import pandas as pd
 
 EXIT_USAGE = 2
 
@@ -19,7 +24,7 @@ class CliError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
 
 
-def _int_arg(name: str):
+def _int_arg(name: str) -> Callable[[str], int]:
     def parse(text: str) -> int:
         try:
             return int(text)
@@ -127,7 +132,7 @@ def _cmd_evolve(args: argparse.Namespace) -> int:
     return 0
 
 
-def _report_run(path, table) -> None:
+def _report_run(path: Path, table: pd.DataFrame) -> None:
     if len(table):
         last = table.iloc[-1]
         print(
@@ -478,23 +483,26 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _user_errors() -> tuple[type[Exception], ...]:
-    """Errors of the evolution side that are the user's to fix (one line, exit 2)."""
+    """Errors that are the user's to fix (one line, exit 2), the evolution side's included
+    once it is loaded (called when an error is caught, so lazily imported modules count)."""
+    from cyber_rodent.assets import AssetNotFoundError
+
+    errors: tuple[type[Exception], ...] = (CliError, ValueError, AssetNotFoundError)
     if "evolution" not in sys.modules:
-        return ()
+        return errors
     from evolution.checkpoint import CheckpointError
     from evolution.sweep import SweepFailed
 
-    return (CheckpointError, SweepFailed)
+    return (*errors, CheckpointError, SweepFailed)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from cyber_rodent.assets import AssetNotFoundError
-
+    command: Callable[[argparse.Namespace], int] = args.func
     try:
-        return args.func(args)
-    except (CliError, ValueError, AssetNotFoundError, *_user_errors()) as err:
+        return command(args)
+    except _user_errors() as err:
         print(f"cyber-rodent: error: {err}", file=sys.stderr)
         return EXIT_USAGE
     except OSError as err:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cyber_rodent import constants as C
+from cyber_rodent.validation import check_number
 
 #: Bumped whenever the command set below changes; stored with trained action values.
 COMMAND_SET_VERSION = 1
@@ -40,13 +41,10 @@ class WheelCommand:
     right: float
 
     def __post_init__(self) -> None:
+        # No field defaults (a command names its speeds), so the rule is checked here.
         for side in ("left", "right"):
-            v = getattr(self, side)
-            if not abs(v) <= C.TOP_SPEED:
-                raise ValueError(
-                    f"WheelCommand {self.name!r}: {side} must be in "
-                    f"[-{C.TOP_SPEED}, {C.TOP_SPEED}] m/s, got {v!r}"
-                )
+            name = f"WheelCommand {self.name!r}: {side}"
+            check_number(name, getattr(self, side), -C.TOP_SPEED, C.TOP_SPEED)
 
 
 #: The command set, in action-index order. Forward motion dominates because docking (Forage)
@@ -105,6 +103,7 @@ def wheel_speeds(indices: np.ndarray | int, out: np.ndarray | None = None) -> np
             f"{int(idx.min())} to {int(idx.max())}"
         )
     if out is None:
-        return COMMAND_SPEEDS[idx]
+        speeds: np.ndarray = COMMAND_SPEEDS[idx]
+        return speeds
     np.take(COMMAND_SPEEDS, idx, axis=0, out=out)
     return out

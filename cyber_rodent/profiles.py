@@ -29,13 +29,20 @@ motor has 50 ms) and robot 2 at 70 % wheel gain ("one robot was weaker").
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from cyber_rodent import constants as C
+from cyber_rodent.validation import (
+    boolean,
+    check_choice,
+    check_number,
+    integer,
+    number,
+    validate_fields,
+)
 from cyber_rodent.vision.config import CameraConfig, VisionNoise
 from cyber_rodent.world import World, WorldConfig
 
@@ -43,22 +50,6 @@ from cyber_rodent.world import World, WorldConfig
 PROFILE_PARTS = ("range_noise", "vision", "actuators", "field")
 #: Names accepted by :func:`profile_by_name` (``--profile``).
 PROFILE_NAMES = ("sim", "hardware")
-
-
-def _real(name: str, value: object, low: float, high: float) -> float:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | float | np.floating | np.integer)
-        or not math.isfinite(float(value))
-        or not low <= float(value) <= high
-    ):
-        raise ValueError(f"{name} must be a number in [{low}, {high}], got {value!r}")
-    return float(value)
-
-
-def _flag(name: str, value: object) -> None:
-    if not isinstance(value, bool):
-        raise ValueError(f"{name} must be True or False, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -73,14 +64,12 @@ class RangeNoise:
             (nothing seen); default 0.02.
     """
 
-    enabled: bool = True
-    std: float = 0.02
-    dropout: float = 0.02
+    enabled: bool = boolean(True)
+    std: float = number(0.02, 0.0, 1.0)
+    dropout: float = number(0.02, 0.0, 1.0)
 
     def __post_init__(self) -> None:
-        _flag("range_noise.enabled", self.enabled)
-        _real("range_noise.std", self.std, 0.0, 1.0)
-        _real("range_noise.dropout", self.dropout, 0.0, 1.0)
+        validate_fields(self, "range_noise.")
 
     @property
     def active(self) -> bool:
@@ -100,16 +89,13 @@ class VisionUncertainty:
         dropout: probability that a visible target is missed in a frame; default 0.1.
     """
 
-    enabled: bool = True
-    bearing_std_deg: float = 5.0
-    distance_rel_std: float = 0.15
-    dropout: float = 0.1
+    enabled: bool = boolean(True)
+    bearing_std_deg: float = number(5.0, 0.0, 90.0)
+    distance_rel_std: float = number(0.15, 0.0, 1.0)
+    dropout: float = number(0.1, 0.0, 1.0)
 
     def __post_init__(self) -> None:
-        _flag("vision.enabled", self.enabled)
-        _real("vision.bearing_std_deg", self.bearing_std_deg, 0.0, 90.0)
-        _real("vision.distance_rel_std", self.distance_rel_std, 0.0, 1.0)
-        _real("vision.dropout", self.dropout, 0.0, 1.0)
+        validate_fields(self, "vision.")
 
     def noise(self) -> VisionNoise:
         """The camera noise model this part stands for (no noise when disabled)."""
@@ -135,34 +121,21 @@ class ActuatorVariation:
         weak_gain: extra gain factor of both wheels of the weak robot; default 0.7.
     """
 
-    enabled: bool = True
-    wheel_gain_spread: float = 0.1
-    friction_spread: float = 0.2
+    enabled: bool = boolean(True)
+    wheel_gain_spread: float = number(0.1, 0.0, 0.9)
+    friction_spread: float = number(0.2, 0.0, 0.9)
     motor_lag_s: tuple[float, float] = (0.05, 0.1)
-    weak_robot: int = 2
-    weak_gain: float = 0.7
+    weak_robot: int = integer(2, -1)
+    weak_gain: float = number(0.7, 0.1, 1.0)
 
     def __post_init__(self) -> None:
-        _flag("actuators.enabled", self.enabled)
-        _real("actuators.wheel_gain_spread", self.wheel_gain_spread, 0.0, 0.9)
-        _real("actuators.friction_spread", self.friction_spread, 0.0, 0.9)
+        validate_fields(self, "actuators.")
         lag = self.motor_lag_s
         if not isinstance(lag, tuple | list) or len(lag) != 2:
             raise ValueError(f"actuators.motor_lag_s must be a (low, high) pair, got {lag!r}")
-        low = _real("actuators.motor_lag_s[0]", lag[0], 0.001, 1.0)
-        high = _real("actuators.motor_lag_s[1]", lag[1], 0.001, 1.0)
-        if low > high:
-            raise ValueError(f"actuators.motor_lag_s must have low <= high, got {lag!r}")
+        low = check_number("actuators.motor_lag_s[0]", lag[0], 0.001, 1.0)
+        high = check_number("actuators.motor_lag_s[1]", lag[1], low, 1.0)
         object.__setattr__(self, "motor_lag_s", (low, high))
-        if isinstance(self.weak_robot, bool) or not isinstance(self.weak_robot, int):
-            raise ValueError(
-                f"actuators.weak_robot must be an integer >= -1, got {self.weak_robot!r}"
-            )
-        if self.weak_robot < -1:
-            raise ValueError(
-                f"actuators.weak_robot must be an integer >= -1, got {self.weak_robot!r}"
-            )
-        _real("actuators.weak_gain", self.weak_gain, 0.1, 1.0)
 
 
 @dataclass(frozen=True)
@@ -175,17 +148,12 @@ class FieldLayout:
         n_packs: battery packs in the field; default 6.
     """
 
-    enabled: bool = True
-    n_robots: int = 3
-    n_packs: int = 6
+    enabled: bool = boolean(True)
+    n_robots: int = integer(3, 1)
+    n_packs: int = integer(6, 0)
 
     def __post_init__(self) -> None:
-        _flag("field.enabled", self.enabled)
-        for name in ("n_robots", "n_packs"):
-            value = getattr(self, name)
-            low = 1 if name == "n_robots" else 0
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise ValueError(f"field.{name} must be an integer >= {low}, got {value!r}")
+        validate_fields(self, "field.")
 
 
 @dataclass(frozen=True)
@@ -235,11 +203,8 @@ class HardwareProfile:
 
 def profile_by_name(name: str) -> HardwareProfile | None:
     """``"sim"``: None (the plain simulation); ``"hardware"``: :class:`HardwareProfile()`."""
-    if name == "sim":
-        return None
-    if name == "hardware":
-        return HardwareProfile()
-    raise ValueError(f"profile must be one of {', '.join(PROFILE_NAMES)}, got {name!r}")
+    check_choice("profile", name, PROFILE_NAMES)
+    return None if name == "sim" else HardwareProfile()
 
 
 # --- applying the parts ------------------------------------------------------------------------

@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from cyber_rodent import constants as C
+from cyber_rodent.atomic import atomic_output
 from cyber_rodent.world import World
 
 #: Geom group of collision-only helper geoms (the wheels' contact spheres): hidden in images.
@@ -91,7 +91,8 @@ class FieldRenderer:
     def _render(self, camera: int) -> np.ndarray:
         self._renderer.update_scene(self.world.data, camera=camera, scene_option=self._option)
         disable_slow_effects(self._renderer.scene)
-        return self._renderer.render()
+        image: np.ndarray = self._renderer.render()
+        return image
 
     def project_top_down(self, xyz: np.ndarray) -> np.ndarray:
         """Pixel (col, row) of world points in the top-down image (pinhole projection).
@@ -119,11 +120,11 @@ class FieldRenderer:
     def __enter__(self) -> FieldRenderer:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-def check_writable_output(path: str | os.PathLike) -> Path:
+def check_writable_output(path: str | os.PathLike[str]) -> Path:
     """Resolve an output file path and fail early, clearly, if it cannot be written.
 
     Raises:
@@ -143,12 +144,11 @@ def check_writable_output(path: str | os.PathLike) -> Path:
     return out
 
 
-def publish_file(temp: str | os.PathLike, out: str | os.PathLike) -> Path:
+def publish_file(temp: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
     """Give a finished temporary file the usual permissions and rename it into place.
 
-    ``tempfile.mkstemp`` makes files readable by their owner only; outputs (images, videos)
-    should get the permissions of any new file under the user's umask. The rename is atomic
-    within one directory, so a reader never sees a half-written output.
+    For writers that still manage their own temporary; new code writes through
+    :func:`cyber_rodent.atomic.atomic_output`, which also fsyncs and cleans up.
     """
     mask = os.umask(0)
     os.umask(mask)
@@ -157,17 +157,11 @@ def publish_file(temp: str | os.PathLike, out: str | os.PathLike) -> Path:
     return Path(out)
 
 
-def write_png(image: np.ndarray, path: str | os.PathLike) -> Path:
-    """Write an RGB image as PNG atomically (temp file in the same directory, then rename)."""
+def write_png(image: np.ndarray, path: str | os.PathLike[str]) -> Path:
+    """Write an RGB image as PNG atomically (see :func:`cyber_rodent.atomic.atomic_output`)."""
     import imageio.v3 as iio
 
     out = check_writable_output(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".png", dir=out.parent)
-    os.close(fd)
-    try:
-        iio.imwrite(tmp, image, extension=".png")
-        publish_file(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(out) as temp:
+        iio.imwrite(temp, image, extension=".png")
     return out

@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -23,6 +24,7 @@ from dm_control import mjcf
 
 from cyber_rodent import constants as C
 from cyber_rodent.assets import asset_path
+from cyber_rodent.validation import integer, number, validate_fields
 
 #: Colours of the LED (RGBA). Off is dark green, not invisible: a real LED is still there.
 LED_ON_RGBA = np.array([0.1, 1.0, 0.1, 1.0])
@@ -37,43 +39,6 @@ PACK_WALL_CLEARANCE = 0.2
 #: Smallest gap between two packs (m): wider than a robot turning in place (0.28 m), so no
 #: robot gets jammed between two packs (a 19 cm gap once held a robot for the rest of a run).
 PACK_GAP = 0.3
-
-
-@dataclass(frozen=True)
-class WorldConfig:
-    """Physical setup of the field.
-
-    Attributes:
-        n_robots: number of Cyber Rodents (paper, simulation: 4).
-        n_packs: number of battery packs (paper, simulation: 5; hardware: 6).
-        timestep: physics timestep in seconds. 1/120 s (12 substeps per 0.1 s control step)
-            is the largest step, of those that divide the control step, whose trajectories
-            stay within 2 cm of a 5x finer reference over 10 s of scripted driving
-            (``benchmarks/timestep_study.py``: 1.90 cm; 1/110 s gives 2.39 cm).
-    """
-
-    n_robots: int = 4
-    n_packs: int = 5
-    timestep: float = 1.0 / 120.0
-
-    def __post_init__(self) -> None:
-        max_robots, max_packs = max_counts()
-        if not isinstance(self.n_robots, int) or not 1 <= self.n_robots <= max_robots:
-            raise ValueError(
-                f"n_robots must be an integer in [1, {max_robots}] (what fits in the "
-                f"{C.FIELD_SIZE} m field), got {self.n_robots!r}"
-            )
-        if not isinstance(self.n_packs, int) or not 0 <= self.n_packs <= max_packs:
-            raise ValueError(
-                f"n_packs must be an integer in [0, {max_packs}], got {self.n_packs!r}"
-            )
-        if not _disc_area(self.n_robots, self.n_packs) <= _usable_area() * _MAX_PACKING_DENSITY:
-            raise ValueError(
-                f"n_robots={self.n_robots} and n_packs={self.n_packs} do not fit in the "
-                f"{C.FIELD_SIZE} m field together; reduce either"
-            )
-        if not (isinstance(self.timestep, float | int) and 1e-4 <= self.timestep <= 0.05):
-            raise ValueError(f"timestep must be in [0.0001, 0.05] s, got {self.timestep!r}")
 
 
 def _usable_area() -> float:
@@ -100,6 +65,39 @@ def max_counts() -> tuple[int, int]:
     max_robots = int(budget / (math.pi * r_robot**2))
     max_packs = int((budget - math.pi * r_robot**2) / (math.pi * r_pack**2))
     return max_robots, max_packs
+
+
+#: The most robots (with no packs) and packs (with one robot) that fit in the field.
+MAX_ROBOTS, MAX_PACKS = max_counts()
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Physical setup of the field.
+
+    Attributes:
+        n_robots: number of Cyber Rodents (paper, simulation: 4).
+        n_packs: number of battery packs (paper, simulation: 5; hardware: 6).
+        timestep: physics timestep in seconds. 1/120 s (12 substeps per 0.1 s control step)
+            is the largest step, of those that divide the control step, whose trajectories
+            stay within 2 cm of a 5x finer reference over 10 s of scripted driving
+            (``benchmarks/timestep_study.py``: 1.90 cm; 1/110 s gives 2.39 cm).
+
+    The counts are bounded by what fits in the field (:data:`MAX_ROBOTS`, :data:`MAX_PACKS`,
+    and both together at the packing density the placement can still draw).
+    """
+
+    n_robots: int = integer(4, 1, MAX_ROBOTS)
+    n_packs: int = integer(5, 0, MAX_PACKS)
+    timestep: float = number(1.0 / 120.0, 1e-4, 0.05)
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+        if not _disc_area(self.n_robots, self.n_packs) <= _usable_area() * _MAX_PACKING_DENSITY:
+            raise ValueError(
+                f"n_robots={self.n_robots} and n_packs={self.n_packs} do not fit in the "
+                f"{C.FIELD_SIZE} m field together; reduce either"
+            )
 
 
 def dock_hold_name(robot: int) -> str:
@@ -164,7 +162,7 @@ class World:
         n = self.config.n_robots
 
         def obj_id(kind: mujoco.mjtObj, name: str) -> int:
-            idx = mujoco.mj_name2id(m, kind, name)
+            idx = int(mujoco.mj_name2id(m, kind, name))
             if idx < 0:
                 raise KeyError(f"model has no {kind.name} named {name!r}")
             return idx
@@ -245,8 +243,8 @@ class World:
         self.wheel_radius = float(m.geom_size[wheel_geom, 0])
         self.max_wheel_omega = float(m.actuator_ctrlrange[motor_ids[0], 1])
         # Views into MjData for the hot path.
-        self._ctrl = self.data.ctrl[self._ctrl_slice].reshape(n, 2)
-        self._ranges_raw = self.data.sensordata[self._range_slice].reshape(n, C.N_RANGE)
+        self._ctrl: np.ndarray = self.data.ctrl[self._ctrl_slice].reshape(n, 2)
+        self._ranges_raw: np.ndarray = self.data.sensordata[self._range_slice].reshape(n, C.N_RANGE)
 
     # --- placement ---------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator) -> None:
@@ -336,11 +334,13 @@ class World:
 
     def uprightness(self) -> np.ndarray:
         """(n_robots,) body z-axis · world z: 1 upright, 0 on its side."""
-        return self.data.xmat[self.chassis_body, 8].copy()
+        upright: np.ndarray = self.data.xmat[self.chassis_body, 8].copy()
+        return upright
 
     def pack_positions(self) -> np.ndarray:
         """(n_packs, 2) x, y of each pack."""
-        return self.model.body_pos[self.pack_body, :2].copy()
+        positions: np.ndarray = self.model.body_pos[self.pack_body, :2].copy()
+        return positions
 
     def set_led(self, on: np.ndarray | bool, robot: int | None = None) -> None:
         """Switch LEDs on (green) or off (dark): all robots, or only ``robot``."""
@@ -356,7 +356,7 @@ class World:
     def time(self) -> float:
         return float(self.data.time)
 
-    def replace(self, **changes) -> World:
+    def replace(self, **changes: Any) -> World:
         """A new world with some config fields changed (placement from a fixed seed)."""
         return World(dataclasses.replace(self.config, **changes))
 

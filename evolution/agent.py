@@ -4,13 +4,23 @@ Each robot carries a subpopulation of virtual agents and runs one of them at a t
 its genome plus the life record that selection needs: energy (its own virtual battery, saved while
 another agent uses the robot), age, batteries captured, matings, and the (genome, fitness) of every
 partner met at a mating.
+
+Genomes are shared between objects (an agent, the partner records that hold its genome, a spare
+list, a life record), so checkpoint states refer to them by index into one (G, 39) array built
+by a :class:`GenomePool` (docs/design.md §10): each genome is stored once, and a restore shares
+them again exactly as the run did.
 """
 
 from __future__ import annotations
 
 import enum
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
+import numpy as np
+
+from evolution.config import GENOME_LENGTH
 from evolution.genome import Genome
 
 
@@ -36,12 +46,65 @@ class Origin(enum.IntEnum):
     SELECTED = 4  #: made by the centralised GA's tournament selection
 
 
+class GenomePool:
+    """Numbers the genomes of a state by identity, for states that refer to them by index."""
+
+    def __init__(self) -> None:
+        self._index: dict[int, int] = {}
+        self._genomes: list[Genome] = []
+
+    def index(self, genome: Genome) -> int:
+        """The genome's index (a new one the first time this object is seen)."""
+        found = self._index.get(id(genome))
+        if found is None:
+            found = self._index[id(genome)] = len(self._genomes)
+            self._genomes.append(genome)  # keeps the object, and so its id, alive
+        return found
+
+    def array(self) -> np.ndarray:
+        """(G, 39) the weights of every genome seen, by index."""
+        if not self._genomes:
+            return np.zeros((0, GENOME_LENGTH))
+        return np.stack([genome.weights for genome in self._genomes])
+
+
+def genomes_from_array(weights: np.ndarray) -> list[Genome]:
+    """The genomes of a :meth:`GenomePool.array` (one object per row).
+
+    Raises:
+        ValueError: not a (G, 39) array of finite numbers.
+    """
+    if not isinstance(weights, np.ndarray) or weights.ndim != 2:
+        raise ValueError("genomes must be a (G, 39) array")
+    return [Genome(row) for row in weights]
+
+
+def genome_at(genomes: Sequence[Genome], index: object) -> Genome:
+    """``genomes[index]`` for an index read from a state (no negative indexing).
+
+    Raises:
+        ValueError: ``index`` is not an integer in range.
+    """
+    if type(index) is not int or not 0 <= index < len(genomes):
+        raise ValueError(f"genome index {index!r} is out of range (pool of {len(genomes)})")
+    return genomes[index]
+
+
 @dataclass(frozen=True, slots=True)
 class MatingRecord:
     """What an agent keeps from one mating: the partner's genome and its fitness at that time."""
 
     genome: Genome
     fitness: float
+
+    def state(self, pool: GenomePool) -> dict[str, Any]:
+        """Plain state; the genome as its index in ``pool``."""
+        return {"genome": pool.index(self.genome), "fitness": self.fitness}
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any], genomes: Sequence[Genome]) -> MatingRecord:
+        """Rebuild a record from :meth:`state` and the pool's genomes."""
+        return cls(genome_at(genomes, state["genome"]), float(state["fitness"]))
 
 
 @dataclass(slots=True)
@@ -82,3 +145,32 @@ class VirtualAgent:
             if best is None or record.fitness > best.fitness:
                 best = record
         return best
+
+    def state(self, pool: GenomePool) -> dict[str, Any]:
+        """Plain state; genomes as their indices in ``pool``."""
+        return {
+            "genome": pool.index(self.genome),
+            "energy": self.energy,
+            "generation": self.generation,
+            "origin": int(self.origin),
+            "age": self.age,
+            "batteries": self.batteries,
+            "matings": self.matings,
+            "partners": [record.state(pool) for record in self.partners],
+            "dead": self.dead,
+        }
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any], genomes: Sequence[Genome]) -> VirtualAgent:
+        """Rebuild an agent from :meth:`state` and the pool's genomes."""
+        return cls(
+            genome=genome_at(genomes, state["genome"]),
+            energy=float(state["energy"]),
+            generation=int(state["generation"]),
+            origin=Origin(int(state["origin"])),
+            age=int(state["age"]),
+            batteries=int(state["batteries"]),
+            matings=int(state["matings"]),
+            partners=[MatingRecord.from_state(p, genomes) for p in state["partners"]],
+            dead=bool(state["dead"]),
+        )

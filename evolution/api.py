@@ -28,7 +28,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,7 +35,7 @@ import mujoco
 import numpy as np
 
 from behaviours import BehaviourPolicies
-from evolution.checkpoint import remove_stale_temporaries
+from cyber_rodent.atomic import atomic_output, remove_stale_temporaries, write_text
 from evolution.config import EvolutionConfig, GeneticConfig
 from evolution.runner import (
     METHODS,
@@ -185,10 +184,7 @@ def run(
         _write_json(out / RUN_FILE, run_record(runner, generations))
 
         def write_results(r: EvolutionRunner) -> None:
-            _write_atomic(out / STATISTICS_FILE, lambda p: r.statistics().to_csv(p, index=False))
-            _write_atomic(
-                out / ROBOT_STATISTICS_FILE, lambda p: robot_table(r).to_csv(p, index=False)
-            )
+            write_tables(out, r.statistics(), robot_table(r))
 
         table = runner.run(
             generations,
@@ -199,11 +195,9 @@ def run(
             progress=progress,
             on_generation=write_results,
         )
-        _write_atomic(out / STATISTICS_FILE, lambda p: table.to_csv(p, index=False))
-        _write_atomic(
-            out / ROBOT_STATISTICS_FILE, lambda p: robot_table(runner).to_csv(p, index=False)
-        )
-        _write_atomic(out / EVENTS_FILE, runner.events.write_csv)
+        write_tables(out, table, robot_table(runner))
+        with atomic_output(out / EVENTS_FILE) as temp:
+            runner.events.write_csv(temp)
         _write_json(out / RUN_FILE, run_record(runner, generations))
     return table
 
@@ -233,21 +227,12 @@ def run_record(runner: EvolutionRunner, generations: int) -> dict[str, Any]:
     }
 
 
-def _write_atomic(path: Path, write: Any) -> None:
-    """Write via ``write(temp_path)`` then rename, so a reader never sees a partial file."""
-    fd, temp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(temp)
-        os.replace(temp, path)
-    except BaseException:
-        Path(temp).unlink(missing_ok=True)
-        raise
+def write_tables(out: Path, statistics: pd.DataFrame, per_robot: pd.DataFrame) -> None:
+    """Write ``statistics.csv`` and ``statistics_per_robot.csv`` into ``out``, atomically."""
+    for name, table in ((STATISTICS_FILE, statistics), (ROBOT_STATISTICS_FILE, per_robot)):
+        with atomic_output(out / name) as temp:
+            table.to_csv(temp, index=False)
 
 
 def _write_json(path: Path, record: dict[str, Any]) -> None:
-    def write(temp: str) -> None:
-        with open(temp, "w") as handle:
-            json.dump(record, handle, indent=2, sort_keys=True, default=repr)
-
-    _write_atomic(path, write)
+    write_text(path, json.dumps(record, indent=2, sort_keys=True, default=repr))

@@ -19,40 +19,19 @@ wires the two checks that both configs agree.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
+
+from cyber_rodent.validation import (
+    boolean,
+    check_integer,
+    check_number,
+    integer,
+    number,
+    validate_fields,
+)
 
 #: Number of evolved weights (paper §3.5): 3 for the recharge decision + 12 x 3 for selection.
 GENOME_LENGTH = 39
-
-
-def _check_int(name: str, value: object, low: int, high: int | None = None) -> None:
-    """Raise a ``ValueError`` naming ``name`` unless ``value`` is an int in [low, high]."""
-    ok = isinstance(value, int) and not isinstance(value, bool)
-    ok = ok and value >= low and (high is None or value <= high)
-    if not ok:
-        upper = "∞)" if high is None else f"{high}]"
-        raise ValueError(f"{name} must be an integer in [{low}, {upper}, got {value!r}")
-
-
-def _check_real(
-    name: str,
-    value: object,
-    low: float = -math.inf,
-    high: float = math.inf,
-    *,
-    low_open: bool = False,
-) -> None:
-    """Raise a ``ValueError`` naming ``name`` unless ``value`` is a finite real in the range."""
-    ok = isinstance(value, int | float) and not isinstance(value, bool)
-    ok = ok and math.isfinite(value)  # type: ignore[arg-type]
-    if ok:
-        ok = (value > low if low_open else value >= low) and value <= high  # type: ignore[operator]
-    if not ok:
-        bracket = "(" if low_open else "["
-        raise ValueError(
-            f"{name} must be a finite number in {bracket}{low}, {high}], got {value!r}"
-        )
 
 
 @dataclass(frozen=True)
@@ -70,32 +49,23 @@ class GeneticConfig:
         tournament_size: individuals per tournament in the centralised GA (paper §4.1: 2).
     """
 
-    initial_weight_low: float = -1.0
-    initial_weight_high: float = 1.0
-    crossover_probability: float = 0.6
-    mutation_probability: float = 0.1
-    mutation_low: float = -0.5
-    mutation_high: float = 0.5
-    tournament_size: int = 2
+    initial_weight_low: float = number(-1.0)
+    initial_weight_high: float = number(1.0)
+    crossover_probability: float = number(0.6, 0.0, 1.0)
+    mutation_probability: float = number(0.1, 0.0, 1.0)
+    mutation_low: float = number(-0.5)
+    mutation_high: float = number(0.5)
+    tournament_size: int = integer(2, 1)
 
     def __post_init__(self) -> None:
-        _check_real("initial_weight_low", self.initial_weight_low)
-        _check_real("initial_weight_high", self.initial_weight_high)
-        if not self.initial_weight_low < self.initial_weight_high:
-            raise ValueError(
-                "initial_weight_low must be < initial_weight_high, got "
-                f"[{self.initial_weight_low}, {self.initial_weight_high}]"
-            )
-        _check_real("crossover_probability", self.crossover_probability, 0.0, 1.0)
-        _check_real("mutation_probability", self.mutation_probability, 0.0, 1.0)
-        _check_real("mutation_low", self.mutation_low)
-        _check_real("mutation_high", self.mutation_high)
-        if not self.mutation_low <= self.mutation_high:
-            raise ValueError(
-                "mutation_low must be <= mutation_high, got "
-                f"[{self.mutation_low}, {self.mutation_high}]"
-            )
-        _check_int("tournament_size", self.tournament_size, 1)
+        validate_fields(self)
+        check_number(
+            "initial_weight_low",
+            self.initial_weight_low,
+            high=self.initial_weight_high,
+            high_open=True,
+        )
+        check_number("mutation_low", self.mutation_low, high=self.mutation_high)
 
 
 @dataclass(frozen=True)
@@ -129,45 +99,33 @@ class EvolutionConfig:
         genetics: the genome and its operators (Table 2).
     """
 
-    lifetime_steps: int = 400
-    time_sharing_steps: int = 100
-    population_size: int = 100
-    n_robots: int = 4
-    initial_energy: float = 100.0
-    max_energy: float = 200.0
-    max_recharge_steps: int = 40
-    fitness_time_unit: float = 100.0
-    ce_fitness_requires_survival: bool = True
-    ee_close_quorum: float = 0.9
+    lifetime_steps: int = integer(400, 1)
+    time_sharing_steps: int = integer(100, 1)
+    population_size: int = integer(100, 1)
+    n_robots: int = integer(4, 1)
+    initial_energy: float = number(100.0, 0.0, low_open=True)
+    max_energy: float = number(200.0, 0.0, low_open=True)
+    max_recharge_steps: int = integer(40, 1)
+    fitness_time_unit: float = number(100.0, 0.0, low_open=True)
+    ce_fitness_requires_survival: bool = boolean(True)
+    ee_close_quorum: float = number(0.9, 0.0, 1.0, low_open=True)
     genetics: GeneticConfig = field(default_factory=GeneticConfig)
 
     def __post_init__(self) -> None:
-        _check_int("lifetime_steps", self.lifetime_steps, 1)
-        _check_int("time_sharing_steps", self.time_sharing_steps, 1, self.lifetime_steps)
-        _check_int("n_robots", self.n_robots, 1)
-        _check_int("population_size", self.population_size, self.n_robots)
+        validate_fields(self)
+        check_integer("time_sharing_steps", self.time_sharing_steps, 1, self.lifetime_steps)
+        check_integer("population_size", self.population_size, self.n_robots)
         if self.population_size % self.n_robots != 0:
             raise ValueError(
                 f"population_size ({self.population_size}) must be divisible by n_robots "
                 f"({self.n_robots}): every robot carries an equal virtual subpopulation"
             )
-        _check_real("max_energy", self.max_energy, 0.0, low_open=True)
-        _check_real("initial_energy", self.initial_energy, 0.0, self.max_energy, low_open=True)
-        _check_int("max_recharge_steps", self.max_recharge_steps, 1)
-        _check_real("fitness_time_unit", self.fitness_time_unit, 0.0, low_open=True)
-        if not isinstance(self.ce_fitness_requires_survival, bool):
-            raise ValueError(
-                "ce_fitness_requires_survival must be True or False, got "
-                f"{self.ce_fitness_requires_survival!r}"
-            )
-        _check_real("ee_close_quorum", self.ee_close_quorum, 0.0, 1.0, low_open=True)
+        check_number("initial_energy", self.initial_energy, 0.0, self.max_energy, low_open=True)
         if not isinstance(self.genetics, GeneticConfig):
             raise ValueError(f"genetics must be a GeneticConfig, got {type(self.genetics)!r}")
-        if self.genetics.tournament_size > self.population_size:
-            raise ValueError(
-                f"genetics.tournament_size must be in [1, population_size="
-                f"{self.population_size}], got {self.genetics.tournament_size}"
-            )
+        check_integer(
+            "genetics.tournament_size", self.genetics.tournament_size, 1, self.population_size
+        )
 
     @property
     def subpopulation_size(self) -> int:

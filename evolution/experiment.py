@@ -35,6 +35,7 @@ from typing import Any
 import pandas as pd
 
 from behaviours import BehaviourPolicies
+from cyber_rodent.atomic import atomic_output, write_text
 from evolution.api import (
     CHECKPOINT_DIR,
     OVERRIDES,
@@ -44,7 +45,7 @@ from evolution.api import (
     make_config,
 )
 from evolution.config import EvolutionConfig, GeneticConfig
-from evolution.runner import EvolutionRunner, latest_checkpoint, policy_identity
+from evolution.runner import EvolutionRunner, RunConfig, latest_checkpoint, policy_identity
 
 VERSIONS_FILE = "versions.json"
 FIGURES_DIR = "figures"
@@ -245,7 +246,7 @@ def prepare_sweep_dir(out: str | os.PathLike[str], *, resume: bool, force: bool)
 
 def environment_versions(argv: list[str] | None = None) -> dict[str, Any]:
     """Python, platform and package versions (what a methods section needs)."""
-    packages = {}
+    packages: dict[str, str | None] = {}
     for dist in RECORDED_DISTRIBUTIONS:
         try:
             packages[dist] = metadata.version(dist)
@@ -261,9 +262,7 @@ def environment_versions(argv: list[str] | None = None) -> dict[str, Any]:
 
 
 def _write_json(path: Path, record: dict[str, Any]) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(record, indent=2, sort_keys=True, default=repr) + "\n")
-    os.replace(tmp, path)
+    write_text(path, json.dumps(record, indent=2, sort_keys=True, default=repr) + "\n")
 
 
 def evolve(
@@ -321,11 +320,14 @@ def read_run_record(path: str | os.PathLike[str]) -> dict[str, Any]:
     """
     p = Path(path) / RUN_FILE
     try:
-        return json.loads(p.read_text())
+        record = json.loads(p.read_text())
     except (OSError, ValueError) as err:
         raise ValueError(
             f"{Path(path)} is not a run directory (cannot read {RUN_FILE}: {err})"
         ) from None
+    if not isinstance(record, dict):
+        raise ValueError(f"{Path(path)} is not a run directory ({RUN_FILE} is not a JSON object)")
+    return record
 
 
 def resume_run(
@@ -362,11 +364,10 @@ def resume_run(
     return path, table
 
 
-def run_config_from_record(data: dict[str, Any]):
+def run_config_from_record(data: dict[str, Any]) -> RunConfig:
     """Rebuild a :class:`~evolution.runner.RunConfig` from its ``dataclasses.asdict`` form."""
-    from evolution.runner import RunConfig
-
-    return _dataclass_from_dict(RunConfig, data)
+    config: RunConfig = _dataclass_from_dict(RunConfig, data)
+    return config
 
 
 def _dataclass_from_dict(cls: type, values: dict[str, Any]) -> Any:
@@ -389,11 +390,9 @@ def _dataclass_from_dict(cls: type, values: dict[str, Any]) -> Any:
 
 def _dataclass_in(hint: Any) -> type | None:
     """The dataclass in a field's type hint (``X`` or ``X | None``), if any."""
-    if dataclasses.is_dataclass(hint):
-        return hint
-    for arg in typing.get_args(hint):
-        if dataclasses.is_dataclass(arg):
-            return arg
+    for candidate in (hint, *typing.get_args(hint)):
+        if isinstance(candidate, type) and dataclasses.is_dataclass(candidate):
+            return candidate
     return None
 
 
@@ -417,7 +416,8 @@ def plot_run_dir(path: str | os.PathLike[str]) -> list[Path]:
         chosen = {m: t for m, t in non_empty.items() if t}
         written += plot_fig6(chosen, root / FIGURES_DIR / "fig6")
         summary = root / FIGURES_DIR / "fig6_summary.csv"
-        summarise_runs(chosen).to_csv(summary, index=False, float_format="%.4g")
+        with atomic_output(summary) as temp:
+            summarise_runs(chosen).to_csv(temp, index=False, float_format="%.4g")
         written.append(summary)
     return written
 

@@ -17,9 +17,16 @@ import math
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
+
+from cyber_rodent.atomic import atomic_output
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: Method name → (label, colour), the paper's colours.
 METHOD_STYLE = {
@@ -29,7 +36,7 @@ METHOD_STYLE = {
 FIGURE_FORMATS = ("png", "pdf")
 
 
-def _pyplot():
+def _pyplot() -> ModuleType:
     import matplotlib
 
     matplotlib.use("Agg", force=True)
@@ -124,12 +131,13 @@ def summarise_runs(
     return pd.DataFrame(rows)
 
 
-def _save(fig, out_base: Path) -> list[Path]:
+def _save(fig: Figure, out_base: Path) -> list[Path]:
     out_base.parent.mkdir(parents=True, exist_ok=True)
     paths = []
     for ext in FIGURE_FORMATS:
         path = out_base.with_suffix(f".{ext}")
-        fig.savefig(path, bbox_inches="tight")
+        with atomic_output(path) as temp:  # keeps the suffix that picks the format
+            fig.savefig(temp, bbox_inches="tight")
         paths.append(path)
     return paths
 

@@ -35,23 +35,34 @@ for this generation and leaves the round robin. A robot whose agents have all fi
 robot has finished; then the whole population is replaced by tournament selection
 (:func:`evolution.reproduction.next_generation`) and every robot restarts at slot 0.
 
-Schedulers are picklable with their full state (agents, spare lists, counters, random generator
-states, statistics), which is what checkpoints store.
+A scheduler's complete state (agents, spare lists, life records, counters, random generator
+states, statistics) is plain data from :meth:`TimeSharingScheduler.state`, restored in place by
+:meth:`TimeSharingScheduler.load_state`: what checkpoints store (docs/design.md §10).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from evolution import scheduler_kernel
-from evolution.agent import MatingRecord, Origin, VirtualAgent
+from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
+from evolution.agent import (
+    GenomePool,
+    MatingRecord,
+    Origin,
+    VirtualAgent,
+    genome_at,
+    genomes_from_array,
+)
 from evolution.agent import fitness as fitness_rule
+from evolution.checkpoint import restore_array
 from evolution.config import GENOME_LENGTH, EvolutionConfig
 from evolution.genome import Genome
+from evolution.kernels import ScheduleRules, SlotCounters, StepOutcome, tick, tick_reference
 from evolution.reproduction import draw_replacement, make_offspring, next_generation
 from evolution.stats import StatisticsRecorder
 
@@ -92,6 +103,31 @@ class LifeRecord:
     matings: int
     fitness: float
 
+    def state(self, pool: GenomePool) -> dict[str, Any]:
+        """Plain state; the genome as its index in ``pool``."""
+        return {
+            "generation": self.generation,
+            "robot": self.robot,
+            "slot": self.slot,
+            "genome": pool.index(self.genome),
+            "batteries": self.batteries,
+            "matings": self.matings,
+            "fitness": self.fitness,
+        }
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any], genomes: Sequence[Genome]) -> LifeRecord:
+        """Rebuild a record from :meth:`state` and the pool's genomes."""
+        return cls(
+            generation=int(state["generation"]),
+            robot=int(state["robot"]),
+            slot=int(state["slot"]),
+            genome=genome_at(genomes, state["genome"]),
+            batteries=int(state["batteries"]),
+            matings=int(state["matings"]),
+            fitness=float(state["fitness"]),
+        )
+
 
 class TimeSharingScheduler:
     """Round-robin time sharing shared by the EE and CE schedulers (see the module docstring).
@@ -102,6 +138,8 @@ class TimeSharingScheduler:
             scheduler (subclasses may spawn children from it).
         initial_genomes: optional initial population, robot-major (robot ``r`` gets
             ``initial_genomes[r * k : (r + 1) * k]``); random U[-1, 1] genomes if None.
+        backend: ``"numba"`` or ``"numpy"``: which implementation of the per-step bookkeeping
+            (:func:`evolution.kernels.tick`) runs.
 
     Attributes:
         active_weights: (n_robots, 39) genome of each robot's active agent (read-only view).
@@ -128,6 +166,7 @@ class TimeSharingScheduler:
         config: EvolutionConfig,
         rng: np.random.Generator,
         initial_genomes: Sequence[Genome] | None = None,
+        backend: Backend = DEFAULT_BACKEND,
     ) -> None:
         if not isinstance(config, EvolutionConfig):
             raise ValueError(f"config must be an EvolutionConfig, got {type(config)!r}")
@@ -166,6 +205,15 @@ class TimeSharingScheduler:
         self._matings = np.zeros(n, dtype=np.int64)
         self._slice = np.zeros(n, dtype=np.int64)
         self._end = np.zeros(n, dtype=bool)
+        #: The per-step bookkeeping's buffers (views of the arrays above).
+        self.counters = SlotCounters(
+            self.active, self._age, self._slice, self.active_energy, self._batteries, self.switched
+        )
+        self._rules = ScheduleRules(config.time_sharing_steps, config.lifetime_steps)
+        self.backend = check_backend(backend)
+        self._tick = pick(self.backend, tick, tick_reference)
+        self._bound_arrays: tuple[np.ndarray, ...] | None = None
+        self._bound_tick: Callable[[], bool] = lambda: True
         for r in range(n):
             self._load(r)
 
@@ -230,31 +278,12 @@ class TimeSharingScheduler:
             ValueError: inconsistent events (an asymmetric mating, a mating with itself, an
                 event for an idle robot).
         """
-        cfg = self.config
         active = self.active
         self.steps += 1
-        if scheduler_kernel.AVAILABLE:
-            if not scheduler_kernel.tick(
-                active, self._age, self._slice, self.active_energy, energy, self._batteries,
-                captured, mated_with, died, self.switched, cfg.time_sharing_steps,
-                cfg.lifetime_steps,
-            ):  # fmt: skip
-                return self.switched
-            any_mating = bool(mated_with.max() >= 0)
-        else:
-            self.switched[:] = False
-            self._age += active
-            self._slice += active
-            np.copyto(self.active_energy, energy, where=active)
-            self._batteries += captured & active
-            any_mating = bool(mated_with.max() >= 0)
-            if not (
-                any_mating
-                or died.any()
-                or self._slice.max() >= cfg.time_sharing_steps
-                or self._age.max() >= cfg.lifetime_steps
-            ):
-                return self.switched
+        if not self._bookkeep(energy, died, captured, mated_with):
+            return self.switched
+        cfg = self.config
+        any_mating = bool(mated_with.max() >= 0)
         if not active.all() and (died[~active].any() or captured[~active].any()):
             raise ValueError("an event (death or capture) was reported for an idle robot")
         if any_mating:
@@ -269,6 +298,21 @@ class TimeSharingScheduler:
             self._end_slot(int(robot), bool(died[robot]))
         self._after_step()
         return self.switched
+
+    def _bookkeep(
+        self, energy: np.ndarray, died: np.ndarray, captured: np.ndarray, mated_with: np.ndarray
+    ) -> bool:
+        """The step's bookkeeping (:func:`evolution.kernels.tick`); True if a slot may end.
+
+        A runner passes the same event buffers every step, so the kernel is bound to them once
+        (and rebound whenever other arrays arrive).
+        """
+        arrays = (energy, died, captured, mated_with)
+        bound = self._bound_arrays
+        if bound is None or any(a is not b for a, b in zip(arrays, bound, strict=True)):
+            self._bound_tick = bind(self._tick, self.counters, StepOutcome(*arrays), self._rules)
+            self._bound_arrays = arrays
+        return bool(self._bound_tick())
 
     def _record_matings(self, mated: np.ndarray) -> None:
         n = self.n_robots
@@ -307,7 +351,7 @@ class TimeSharingScheduler:
         self._advance(robot)
 
     def _record_life(self, generation: int, robot: int, slot: int, agent: VirtualAgent) -> None:
-        lives = self.__dict__.setdefault("completed_lives", {})  # absent in older checkpoints
+        lives = self.completed_lives
         record = LifeRecord(
             generation, robot, slot, agent.genome, agent.batteries, agent.matings,
             agent.fitness(self.config.fitness_time_unit),
@@ -319,7 +363,7 @@ class TimeSharingScheduler:
 
     def lives_of(self, generation: int) -> list[LifeRecord]:
         """The recorded full lives of ``generation`` (empty if none, or no longer kept)."""
-        return list(self.__dict__.get("completed_lives", {}).get(generation, []))
+        return list(self.completed_lives.get(generation, []))
 
     # --- moving counters between the per-robot arrays and the agent objects --------------
     def _store(self, robot: int) -> VirtualAgent:
@@ -349,6 +393,11 @@ class TimeSharingScheduler:
         self.birth_log.append((self.steps, robot, slot, generation, int(origin)))
 
     # --- method-specific hooks -------------------------------------------------------------
+    def completed_generations(self) -> int:
+        """Generations whose statistics are final (EE: a quorum of slots passed; CE: the
+        population was replaced)."""
+        raise NotImplementedError
+
     def _on_death(self, robot: int, slot: int) -> None:
         raise NotImplementedError
 
@@ -360,6 +409,92 @@ class TimeSharingScheduler:
 
     def _after_step(self) -> None:
         """Called once per step after every robot's slot end was handled."""
+
+    # --- checkpoint state ------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        """The scheduler's complete state as plain data (docs/design.md §10).
+
+        Every genome is stored once, in ``genomes`` (a (G, 39) array), and referred to by its
+        index from the agents, their partner records, the life records and the spare lists, so
+        a restore shares genome objects exactly as the run did. The per-robot arrays are saved
+        as they are (the active agent's counters live there, not in its agent object), the
+        random generators as their bit-generator states.
+        """
+        pool = GenomePool()
+        state: dict[str, Any] = {
+            "rng": self._rng.bit_generator.state,
+            "slots": [[agent.state(pool) for agent in agents] for agents in self.slots],
+            "stats": self.stats.state(),
+            "steps": self.steps,
+            "birth_log": [list(entry) for entry in self.birth_log],
+            "completed_lives": [
+                [generation, [life.state(pool) for life in lives]]
+                for generation, lives in self.completed_lives.items()
+            ],
+            "arrays": {name: array.copy() for name, array in self._state_arrays().items()},
+            **self._method_state(pool),
+        }
+        state["genomes"] = pool.array()
+        return state
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Replace this scheduler's state with the :meth:`state` of one of the same class and
+        config. Arrays are restored in place: the step kernel and the runner's controller hold
+        views of them.
+
+        Raises:
+            ValueError: the state does not fit this scheduler (another population layout, a
+                generator of another kind, an array of another shape or dtype).
+            KeyError: a part of the state is missing.
+        """
+        genomes = genomes_from_array(state["genomes"])
+        slots = [
+            [VirtualAgent.from_state(agent, genomes) for agent in agents]
+            for agents in state["slots"]
+        ]
+        if [len(agents) for agents in slots] != [self.subpopulation_size] * self.n_robots:
+            raise ValueError("the saved population has another layout of robots and slots")
+        arrays = state["arrays"]
+        targets = self._state_arrays()
+        if sorted(arrays) != sorted(targets):
+            raise ValueError(f"scheduler arrays {sorted(arrays)}, expected {sorted(targets)}")
+        for name, target in targets.items():
+            restore_array(target, arrays[name], f"scheduler {name}")
+        self._rng.bit_generator.state = state["rng"]
+        self.slots = slots
+        self.stats.load_state(state["stats"])
+        self.steps = int(state["steps"])
+        self.birth_log = [
+            (int(step), int(robot), int(slot), int(generation), int(origin))
+            for step, robot, slot, generation, origin in state["birth_log"]
+        ]
+        self.completed_lives = {
+            int(generation): [LifeRecord.from_state(life, genomes) for life in lives]
+            for generation, lives in state["completed_lives"]
+        }
+        self._load_method_state(state, genomes)
+
+    def _state_arrays(self) -> dict[str, np.ndarray]:
+        """The live per-robot and per-slot arrays a state saves, by name."""
+        return {
+            "slot_generation": self.slot_generation,
+            "active_slot": self.active_slot,
+            "active": self.active,
+            "switched": self.switched,
+            "weights": self._weights,
+            "active_energy": self.active_energy,
+            "age": self._age,
+            "batteries": self._batteries,
+            "matings": self._matings,
+            "slice": self._slice,
+        }
+
+    def _method_state(self, pool: GenomePool) -> dict[str, Any]:
+        """The method's own part of :meth:`state`."""
+        return {}
+
+    def _load_method_state(self, state: dict[str, Any], genomes: Sequence[Genome]) -> None:
+        """Restore what :meth:`_method_state` saved."""
 
 
 class EmbodiedEvolution(TimeSharingScheduler):
@@ -375,8 +510,9 @@ class EmbodiedEvolution(TimeSharingScheduler):
         config: EvolutionConfig,
         rng: np.random.Generator,
         initial_genomes: Sequence[Genome] | None = None,
+        backend: Backend = DEFAULT_BACKEND,
     ) -> None:
-        super().__init__(config, rng, initial_genomes)
+        super().__init__(config, rng, initial_genomes, backend)
         self.spare_lists: list[list[Genome]] = [[] for _ in range(self.n_robots)]
         self.robot_rngs: list[np.random.Generator] = rng.spawn(self.n_robots)
         self._next_to_close = 0
@@ -431,6 +567,23 @@ class EmbodiedEvolution(TimeSharingScheduler):
         self.active_slot[robot] = (self.active_slot[robot] + 1) % self.subpopulation_size
         self._load(robot)
 
+    def _method_state(self, pool: GenomePool) -> dict[str, Any]:
+        return {
+            "spare_lists": [[pool.index(g) for g in spares] for spares in self.spare_lists],
+            "robot_rngs": [rng.bit_generator.state for rng in self.robot_rngs],
+            "next_to_close": self._next_to_close,
+        }
+
+    def _load_method_state(self, state: dict[str, Any], genomes: Sequence[Genome]) -> None:
+        spare_lists = [[genome_at(genomes, i) for i in spares] for spares in state["spare_lists"]]
+        rng_states = state["robot_rngs"]
+        if len(spare_lists) != self.n_robots or len(rng_states) != self.n_robots:
+            raise ValueError("the saved spare lists or generators are not one per robot")
+        for rng, saved in zip(self.robot_rngs, rng_states, strict=True):
+            rng.bit_generator.state = saved
+        self.spare_lists = spare_lists
+        self._next_to_close = int(state["next_to_close"])
+
 
 class CentralisedEvolution(TimeSharingScheduler):
     """The centralised GA baseline (paper §4.1): same time sharing, generational replacement.
@@ -445,8 +598,9 @@ class CentralisedEvolution(TimeSharingScheduler):
         config: EvolutionConfig,
         rng: np.random.Generator,
         initial_genomes: Sequence[Genome] | None = None,
+        backend: Backend = DEFAULT_BACKEND,
     ) -> None:
-        super().__init__(config, rng, initial_genomes)
+        super().__init__(config, rng, initial_genomes, backend)
         self.generation = 0
         self.finished = np.zeros((self.n_robots, self.subpopulation_size), dtype=bool)
 
@@ -508,3 +662,12 @@ class CentralisedEvolution(TimeSharingScheduler):
             self.active[r] = True
             self.active_slot[r] = 0
             self._load(r)
+
+    def _state_arrays(self) -> dict[str, np.ndarray]:
+        return {**super()._state_arrays(), "finished": self.finished}
+
+    def _method_state(self, pool: GenomePool) -> dict[str, Any]:
+        return {"generation": self.generation}
+
+    def _load_method_state(self, state: dict[str, Any], genomes: Sequence[Genome]) -> None:
+        self.generation = int(state["generation"])

@@ -28,10 +28,13 @@ import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import numpy as np
 
 from evolution.agent import Origin
+
+_Row = TypeVar("_Row", "GenerationStats", "RobotGenerationStats")
 
 
 @dataclass(frozen=True)
@@ -111,6 +114,38 @@ class _Tally:
     births: dict[int, int] = field(default_factory=dict)
     robot_full_life: dict[int, list[tuple[int, bool]]] = field(default_factory=dict)
 
+    def state(self) -> dict[str, Any]:
+        """Plain state; integer-keyed maps as ``[key, value]`` pairs in insertion order."""
+        return {
+            "batteries": list(self.batteries),
+            "matings": list(self.matings),
+            "full_life_batteries": list(self.full_life_batteries),
+            "deaths": self.deaths,
+            "reproductions": self.reproductions,
+            "crossovers": self.crossovers,
+            "births": [[origin, count] for origin, count in self.births.items()],
+            "robot_full_life": [
+                [robot, [[b, mated] for b, mated in lives]]
+                for robot, lives in self.robot_full_life.items()
+            ],
+        }
+
+    @classmethod
+    def from_state(cls, state: dict[str, Any]) -> _Tally:
+        return cls(
+            batteries=[int(b) for b in state["batteries"]],
+            matings=[int(m) for m in state["matings"]],
+            full_life_batteries=[int(b) for b in state["full_life_batteries"]],
+            deaths=int(state["deaths"]),
+            reproductions=int(state["reproductions"]),
+            crossovers=int(state["crossovers"]),
+            births={int(origin): int(count) for origin, count in state["births"]},
+            robot_full_life={
+                int(robot): [(int(b), bool(mated)) for b, mated in lives]
+                for robot, lives in state["robot_full_life"]
+            },
+        )
+
 
 def _mean_std(values: list[int]) -> tuple[float, float]:
     if not values:
@@ -150,7 +185,7 @@ class StatisticsRecorder:
         tally = self._tally(generation)
         tally.full_life_batteries.append(batteries if matings > 0 else 0)
         if robot is not None:
-            per_robot = tally.__dict__.setdefault("robot_full_life", {})  # older checkpoints
+            per_robot = tally.robot_full_life
             per_robot.setdefault(int(robot), []).append((int(batteries), matings > 0))
         if matings > 0:
             tally.batteries.append(batteries)
@@ -206,11 +241,10 @@ class StatisticsRecorder:
             spare_list_size=int(spare_list_size),
         )
         self.rows.append(row)
-        robot_rows = self.__dict__.setdefault("robot_rows", [])  # absent in older checkpoints
-        per_robot = tally.__dict__.get("robot_full_life", {})
+        per_robot = tally.robot_full_life
         for robot in sorted(per_robot):
             lives = per_robot[robot]
-            robot_rows.append(
+            self.robot_rows.append(
                 RobotGenerationStats(
                     generation=generation,
                     robot=robot,
@@ -223,7 +257,7 @@ class StatisticsRecorder:
 
     def robot_records(self) -> list[dict[str, float | int]]:
         """The closed per-robot rows as plain dicts (generation, robot, batteries_mean, ...)."""
-        return [dataclasses.asdict(row) for row in self.__dict__.get("robot_rows", [])]
+        return [dataclasses.asdict(row) for row in self.robot_rows]
 
     def to_records(self) -> list[dict[str, float | int]]:
         """The closed rows as plain dicts (what crosses package boundaries)."""
@@ -236,3 +270,30 @@ class StatisticsRecorder:
             writer = csv.DictWriter(handle, fieldnames=names)
             writer.writeheader()
             writer.writerows(self.to_records())
+
+    def state(self) -> dict[str, Any]:
+        """The recorder's complete state as plain data: the open generations' tallies (in
+        insertion order), the closed rows and the late-event counter (docs/design.md §10)."""
+        return {
+            "open": [[generation, tally.state()] for generation, tally in self._open.items()],
+            "accept_late": self.accept_late,
+            "late": self.late,
+            "rows": [dataclasses.asdict(row) for row in self.rows],
+            "robot_rows": [dataclasses.asdict(row) for row in self.robot_rows],
+        }
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Replace this recorder's state with a :meth:`state`."""
+        self._open = {int(g): _Tally.from_state(tally) for g, tally in state["open"]}
+        self.accept_late = bool(state["accept_late"])
+        self.late = int(state["late"])
+        self.rows = [_row(GenerationStats, row) for row in state["rows"]]
+        self.robot_rows = [_row(RobotGenerationStats, row) for row in state["robot_rows"]]
+
+
+def _row(cls: type[_Row], values: dict[str, Any]) -> _Row:
+    """A statistics row from its ``dataclasses.asdict`` form (exactly its fields)."""
+    names = [f.name for f in dataclasses.fields(cls)]
+    if sorted(values) != sorted(names):
+        raise ValueError(f"{cls.__name__} row has fields {sorted(values)}")
+    return cls(**values)

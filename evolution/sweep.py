@@ -37,6 +37,8 @@ from typing import Any
 
 import pandas as pd
 
+from cyber_rodent.validation import check_integer, choice, validate_fields
+
 METHODS = ("ee", "ce")
 BACKENDS = ("local", "ray")
 POLICIES = ("trained", "reactive")
@@ -62,9 +64,10 @@ class SweepSpec:
     seeds: tuple[int, ...]
     generations: int
     overrides: dict[str, Any] = field(default_factory=dict)
-    policies: str = "trained"
+    policies: str = choice("trained", POLICIES)
 
     def __post_init__(self) -> None:
+        validate_fields(self)
         if not self.methods or any(m not in METHODS for m in self.methods):
             raise ValueError(
                 f"methods must be a non-empty subset of {METHODS}, got {self.methods!r}"
@@ -73,13 +76,9 @@ class SweepSpec:
             raise ValueError(f"methods must not repeat, got {self.methods!r}")
         if not self.seeds or len(set(self.seeds)) != len(self.seeds):
             raise ValueError(f"seeds must be a non-empty list without repeats, got {self.seeds!r}")
-        if any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in self.seeds):
-            raise ValueError(f"seeds must be integers >= 0, got {self.seeds!r}")
-        g = self.generations
-        if isinstance(g, bool) or not isinstance(g, int) or g < 1:
-            raise ValueError(f"generations must be an integer >= 1, got {g!r}")
-        if self.policies not in POLICIES:
-            raise ValueError(f"policies must be one of {POLICIES}, got {self.policies!r}")
+        for seed in self.seeds:
+            check_integer("seed", seed, 0)
+        check_integer("generations", self.generations, 1)
 
     @property
     def runs(self) -> list[tuple[str, int]]:
@@ -403,7 +402,7 @@ def load_sweep(
     for path in candidates:
         m = re.fullmatch(r"(ee|ce)-seed(\d+)", path.name)
         method = m.group(1) if m else _method_of(path)
-        if method in methods and (path / "statistics.csv").exists():
+        if method is not None and method in methods and (path / "statistics.csv").exists():
             found.setdefault(method, []).append(pd.read_csv(path / "statistics.csv"))
     return found
 
@@ -413,6 +412,7 @@ def _method_of(path: Path) -> str | None:
 
     try:
         record = json.loads((path / "run.json").read_text())
-        return record["config"]["method"]
+        method = record["config"]["method"]
     except (OSError, ValueError, KeyError, TypeError):
         return None
+    return method if isinstance(method, str) else None

@@ -38,15 +38,17 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from cyber_rodent.atomic import atomic_output, write_text
 from cyber_rodent.profiles import HardwareProfile, apply_field, apply_vision
+from cyber_rodent.validation import check_integer
 from evolution.api import (
     CHECKPOINT_DIR,
     EVENTS_FILE,
     ROBOT_STATISTICS_FILE,
     RUN_FILE,
-    STATISTICS_FILE,
     robot_table,
     run_record,
+    write_tables,
 )
 from evolution.genome import Genome
 from evolution.runner import EvolutionRunner, RunConfig, list_checkpoints
@@ -54,12 +56,6 @@ from evolution.scheduler import TimeSharingScheduler
 
 TRANSFER_FILE = "transfer.json"
 FIGURE_BASE = "figures/fig7"
-
-
-def _count(name: str, value: object, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
-        raise ValueError(f"{name} must be an integer in [{low}, ∞), got {value!r}")
-    return int(value)
 
 
 def hardware_run_config(
@@ -85,8 +81,8 @@ def hardware_run_config(
     if robots is None:
         robots = profile.field.n_robots if profile is not None and profile.field.enabled else None
         robots = robots if robots is not None else evo.n_robots
-    robots = _count("robots", robots, 1)
-    k = _count(
+    robots = check_integer("robots", robots, 1)
+    k = check_integer(
         "agents_per_robot",
         agents_per_robot if agents_per_robot is not None else evo.subpopulation_size,
         1,
@@ -109,7 +105,7 @@ def checkpoint_of_generation(run_dir: str | os.PathLike[str], generation: int) -
         ValueError: ``run_dir`` has no such checkpoint; the message lists the generations it
             has and how to keep them all.
     """
-    generation = _count("generation", generation, 0)
+    generation = check_integer("generation", generation, 0)
     directory = Path(run_dir) / CHECKPOINT_DIR
     found = list_checkpoints(directory)
     for path in found:
@@ -161,7 +157,7 @@ def fittest_individuals(
     Raises:
         ValueError: ``top`` is not in [1, number of candidates].
     """
-    top = _count("top", top, 1)
+    top = check_integer("top", top, 1)
     lives = scheduler.lives_of(generation) if generation is not None else []
     if lives:
         order = sorted(range(len(lives)), key=lambda i: (-lives[i].fitness, -lives[i].matings, i))
@@ -215,9 +211,7 @@ class TransferResult:
 
 
 def _write_json(path: Path, record: dict[str, Any]) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(record, indent=2, sort_keys=True, default=repr) + "\n")
-    os.replace(tmp, path)
+    write_text(path, json.dumps(record, indent=2, sort_keys=True, default=repr) + "\n")
 
 
 def transfer(
@@ -257,9 +251,9 @@ def transfer(
     """
     from evolution.experiment import policies_for_identity, read_run_record
 
-    top = _count("top", top, 1)
-    generations = _count("generations", generations, 1)
-    seed = _count("seed", seed, 0)
+    top = check_integer("top", top, 1)
+    generations = check_integer("generations", generations, 1)
+    seed = check_integer("seed", seed, 0)
     src, dst = Path(source), Path(out)
     record = read_run_record(src)
     checkpoint = checkpoint_of_generation(src, generation)
@@ -310,9 +304,8 @@ def transfer(
         }
         _write_json(dst / TRANSFER_FILE, meta)
 
-        def write_tables(r: EvolutionRunner) -> None:
-            r.statistics().to_csv(dst / STATISTICS_FILE, index=False)
-            robot_table(r).to_csv(dst / ROBOT_STATISTICS_FILE, index=False)
+        def write_results(r: EvolutionRunner) -> None:
+            write_tables(dst, r.statistics(), robot_table(r))
 
         _write_json(dst / RUN_FILE, _run_record(runner, generations))
         table = runner.run(
@@ -321,10 +314,11 @@ def transfer(
             keep_checkpoints=keep_checkpoints,
             max_steps=max_steps,
             progress=progress,
-            on_generation=write_tables,
+            on_generation=write_results,
         )
-        write_tables(runner)
-        runner.events.write_csv(dst / EVENTS_FILE)
+        write_results(runner)
+        with atomic_output(dst / EVENTS_FILE) as temp:
+            runner.events.write_csv(temp)
         _write_json(dst / RUN_FILE, _run_record(runner, generations))
         per_robot = robot_table(runner)
     figure: list[Path] = []

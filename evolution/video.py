@@ -14,7 +14,6 @@ imageio-ffmpeg's bundled ffmpeg) is written to a temporary file and renamed when
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,7 +21,9 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from cyber_rodent.render import FieldRenderer, check_writable_output, publish_file
+from cyber_rodent.atomic import atomic_output
+from cyber_rodent.render import FieldRenderer, check_writable_output
+from cyber_rodent.validation import integer, validate_fields
 from cyber_rodent.vision import CameraConfig
 from cyber_rodent.vision.rendering import OmniRenderer
 
@@ -51,23 +52,14 @@ class VideoConfig:
         mating_flash_frames: frames a mating line stays visible.
     """
 
-    fps: int = 10
-    steps_per_frame: int = 1
-    field_px: int = 720
-    mating_flash_frames: int = 8
+    fps: int = integer(10, 1, 120)
+    steps_per_frame: int = integer(1, 1, 1000)
+    field_px: int = integer(720, 128, 2048)
+    mating_flash_frames: int = integer(8, 0)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.fps, int) or not 1 <= self.fps <= 120:
-            raise ValueError(f"fps must be an integer in [1, 120], got {self.fps!r}")
-        if not isinstance(self.steps_per_frame, int) or not 1 <= self.steps_per_frame <= 1000:
-            raise ValueError(
-                f"steps_per_frame must be an integer in [1, 1000], got {self.steps_per_frame!r}"
-            )
-        if (
-            not isinstance(self.field_px, int)
-            or not 128 <= self.field_px <= 2048
-            or (self.field_px % 16)
-        ):
+        validate_fields(self)
+        if self.field_px % 16:
             raise ValueError(
                 f"field_px must be a multiple of 16 in [128, 2048], got {self.field_px!r}"
             )
@@ -215,37 +207,34 @@ def render_video(
     if out.suffix.lower() != ".mp4":
         raise ValueError(f"video output must be an .mp4 file, got {out.name}")
     video = RunVideo(runner, config)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".mp4", dir=out.parent)
-    os.close(fd)
     try:
-        writer = imageio.get_writer(
-            tmp,
-            format="FFMPEG",
-            fps=config.fps,
-            codec="libx264",
-            quality=7,
-            macro_block_size=16,
-            pixelformat="yuv420p",
-        )
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
+        with atomic_output(out) as temp:
+            writer = imageio.get_writer(
+                str(temp),
+                format="FFMPEG",
+                fps=config.fps,
+                codec="libx264",
+                quality=7,
+                macro_block_size=16,
+                pixelformat="yuv420p",
+            )
+            bar = None
+            if progress:
+                from tqdm.auto import tqdm
 
-            bar = tqdm(total=frames, unit="frame", desc=f"render {out.name}", dynamic_ncols=True)
-        try:
-            for _ in range(frames):
-                video.advance()
-                writer.append_data(video.frame())
+                bar = tqdm(
+                    total=frames, unit="frame", desc=f"render {out.name}", dynamic_ncols=True
+                )
+            try:
+                for _ in range(frames):
+                    video.advance()
+                    writer.append_data(video.frame())
+                    if bar is not None:
+                        bar.update()
+            finally:
+                writer.close()
                 if bar is not None:
-                    bar.update()
-        finally:
-            writer.close()
-            if bar is not None:
-                bar.close()
-        publish_file(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+                    bar.close()
     finally:
         video.close()
     return out

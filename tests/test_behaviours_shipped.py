@@ -112,15 +112,13 @@ def test_commands_of_learned_policies_match_each_policy(learned):
 
 
 def test_compiled_commands_equal_the_numpy_path(learned):
-    """The compiled kernel (used when an int64 ``out`` buffer is given, as the runner does)
-    chooses exactly what the numpy path and each policy choose, on random inputs, on the
-    edges 0 and 1, and on tile boundaries; bad input is refused the same way."""
-    from behaviours import greedy_kernel
+    """The compiled kernel (backend "numba", what the runner uses) chooses exactly what the
+    numpy reference and each policy choose, on random inputs, on the edges 0 and 1, and on
+    tile boundaries; bad input is refused the same way by both."""
     from behaviours.inputs import BehaviourInputs
 
-    if not greedy_kernel.AVAILABLE:
-        pytest.skip("numba is not installed")
-    assert learned._compiled
+    assert learned.backend == "numba" and learned.tables is not None
+    reference = BehaviourPolicies(*learned.policies, kind="learned", backend="numpy")
     rng = np.random.default_rng(11)
     n = 500
     grid = np.linspace(0.0, 1.0, 41)  # many exact tile boundaries
@@ -135,7 +133,7 @@ def test_compiled_commands_equal_the_numpy_path(learned):
         )
         behaviour = rng.integers(3, size=n)
         compiled = learned.commands(behaviour, inputs, out=np.full(n, -1, dtype=np.int64))
-        np.testing.assert_array_equal(compiled, learned.commands(behaviour, inputs))
+        np.testing.assert_array_equal(compiled, reference.commands(behaviour, inputs))
         for b in range(3):
             rows = behaviour == b
             expected = learned.policies[b].act(inputs.of(b)[rows])
@@ -144,10 +142,11 @@ def test_compiled_commands_equal_the_numpy_path(learned):
         mate=np.array([[0.5, np.nan]]), forage=np.zeros((1, 2)), search=np.zeros((1, 2)),
         mate_available=np.ones(1, dtype=bool), forage_available=np.ones(1, dtype=bool),
     )  # fmt: skip
-    with pytest.raises(ValueError, match=r"must be in \[0, 1\] \(no NaN\)"):
-        learned.commands(np.array([0]), bad, out=np.zeros(1, dtype=np.int64))
-    with pytest.raises(ValueError, match=r"indices must be in \[0, 3\)"):
-        learned.commands(np.array([3]), bad, out=np.zeros(1, dtype=np.int64))
+    for policies in (learned, reference):
+        with pytest.raises(ValueError, match=r"must be in \[0, 1\] \(no NaN\)"):
+            policies.commands(np.array([0]), bad, out=np.zeros(1, dtype=np.int64))
+        with pytest.raises(ValueError, match=r"indices must be in \[0, 3\)"):
+            policies.commands(np.array([3]), bad, out=np.zeros(1, dtype=np.int64))
 
 
 def test_exported_shipped_policies_act_like_numpy(tmp_path):

@@ -145,13 +145,13 @@ def test_led_follows_mate_versus_forage_and_the_previous_led_input() -> None:
     for _ in range(4):
         runner.step()
         leds.append(bool(runner.world.led_on[0]))
-        previous.append(runner.controller.inputs[0, IN_LED_PREVIOUS])
-        energy_inputs.append(runner.controller.inputs[0, IN_ENERGY])
+        previous.append(runner.controller.buffers.inputs[0, IN_LED_PREVIOUS])
+        energy_inputs.append(runner.controller.buffers.inputs[0, IN_ENERGY])
         assert runner.controller.behaviour[0] == SEARCH  # the only available behaviour
     assert leds == [True, False, True, False]
     assert previous == [0.0, 1.0, 0.0, 1.0]
     assert energy_inputs == [100 / 200, 99 / 200, 98 / 200, 97 / 200]
-    np.testing.assert_array_equal(runner.controller.activations[0], [-1.0, -0.5, -3.0])
+    np.testing.assert_array_equal(runner.controller.buffers.activations[0], [-1.0, -0.5, -3.0])
 
 
 def test_unavailable_behaviours_are_never_chosen_in_the_world() -> None:
@@ -162,7 +162,7 @@ def test_unavailable_behaviours_are_never_chosen_in_the_world() -> None:
     for _ in range(50):
         runner.step()
         assert runner.controller.behaviour[0] == SEARCH
-        assert not runner._mate[0]
+        assert not runner.action.mate[0]
         assert runner.world.led_on[0]  # Mate > Forage: willing to mate
 
 
@@ -316,7 +316,7 @@ def test_rendered_camera_drives_the_runner_and_resumes_identically(tmp_path) -> 
     with EvolutionRunner(cfg, 0, REACTIVE) as runner:
         for _ in range(10):
             runner.step()
-        assert runner.perception.visible.any()
+        assert runner.perception.nearest.visible.any()
         runner.save_checkpoint(tmp_path / "mid.ckpt")
         for _ in range(10):
             runner.step()
@@ -324,7 +324,9 @@ def test_rendered_camera_drives_the_runner_and_resumes_identically(tmp_path) -> 
             for _ in range(10):
                 resumed.step()
             identical(runner, resumed)
-            np.testing.assert_array_equal(runner.perception.bearing, resumed.perception.bearing)
+            np.testing.assert_array_equal(
+                runner.perception.nearest.bearing, resumed.perception.nearest.bearing
+            )
 
 
 # --- integration ------------------------------------------------------------------------------
@@ -481,12 +483,12 @@ def test_incompatible_or_corrupt_checkpoints_are_refused_and_left_intact(ee_run,
 
 _KILLED_WRITER = textwrap.dedent(
     """
-    import os, signal, sys
+    import builtins, os, signal, sys
     from behaviours import BehaviourPolicies
     from evolution.config import EvolutionConfig
     from evolution.runner import EvolutionRunner, RunConfig
 
-    real_fdopen = os.fdopen
+    real_open = builtins.open
     opened = 0
 
     class DiesMidWrite:
@@ -507,16 +509,16 @@ _KILLED_WRITER = textwrap.dedent(
         def __getattr__(self, name):
             return getattr(self.handle, name)
 
-    def fdopen(fd, mode="r", *args, **kwargs):
+    def open_checkpoint(file, mode="r", *args, **kwargs):
         global opened
-        handle = real_fdopen(fd, mode, *args, **kwargs)
-        if "w" in mode:
+        handle = real_open(file, mode, *args, **kwargs)
+        if "w" in mode and str(file).endswith(".ckpt"):
             opened += 1
             if opened == 2:  # the second checkpoint
                 return DiesMidWrite(handle)
         return handle
 
-    os.fdopen = fdopen
+    builtins.open = open_checkpoint
     cfg = RunConfig(evolution=EvolutionConfig(
         population_size=8, n_robots=4, lifetime_steps=80, time_sharing_steps=40))
     runner = EvolutionRunner(cfg, 0, BehaviourPolicies.reactive())
@@ -539,7 +541,7 @@ def test_a_writer_killed_mid_checkpoint_leaves_the_last_good_one(tmp_path) -> No
     names = sorted(p.name for p in tmp_path.iterdir())
     # The first checkpoint, and the half-written temporary of the second; no gen_00002.
     assert names[-1] == "gen_00001.ckpt" and len(names) == 2, names
-    assert names[0].endswith(".tmp-ckpt")
+    assert names[0].endswith(".partial.ckpt")
     # The last good checkpoint loads and continues exactly like an uninterrupted run.
     cfg = small_config("ee", lifetime_steps=80)
     resumed = EvolutionRunner.from_checkpoint(tmp_path / "gen_00001.ckpt", REACTIVE)
@@ -551,25 +553,30 @@ def test_a_writer_killed_mid_checkpoint_leaves_the_last_good_one(tmp_path) -> No
 
 
 @pytest.mark.parametrize("method", ["ee", "ce"])
-def test_fused_sense_decide_act_equals_the_step_by_step_path(method, monkeypatch) -> None:
-    """``step_kernel.sense_decide_act`` (one compiled call per step) changes nothing: the same
-    seed gives the same trajectory, events, LEDs and statistics as the kernel-by-kernel path,
+def test_fused_sense_decide_act_equals_the_step_by_step_path(method) -> None:
+    """``evolution.kernels.sense_decide_act`` (one compiled call per step) changes nothing: the
+    same seed gives the same trajectory, events, LEDs and statistics as the stage-by-stage path
+    (``EvolutionRunner.sense_decide_act_stepwise``, what rendered or noisy vision uses),
     through dockings, deaths, matings, agent switches and a checkpoint restore."""
-    from evolution.runner import step_kernel
 
-    if not step_kernel.AVAILABLE:
-        pytest.skip("numba is not installed")
+    def stage_by_stage(runner: EvolutionRunner) -> EvolutionRunner:
+        runner.sense_decide_act = runner.sense_decide_act_stepwise
+        return runner
 
     def run(fused: bool, tmp: Path) -> EvolutionRunner:
-        monkeypatch.setattr(step_kernel, "AVAILABLE", fused)
         runner = EvolutionRunner(RunConfig(method=method), 11, BehaviourPolicies.load_default())
+        assert runner.sense_decide_act != runner.sense_decide_act_stepwise  # fused by default
+        if not fused:
+            stage_by_stage(runner)
         for _ in range(700):
             runner.step()
         runner.save_checkpoint(tmp)
         runner = EvolutionRunner.from_checkpoint(tmp, BehaviourPolicies.load_default())
+        if not fused:
+            stage_by_stage(runner)
         for _ in range(800):
             runner.step()
-        assert bool(runner._fused_args) == fused
+        assert (runner.sense_decide_act != runner.sense_decide_act_stepwise) == fused
         return runner
 
     import tempfile

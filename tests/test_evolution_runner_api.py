@@ -103,8 +103,8 @@ def test_resume_with_another_config_or_a_corrupt_checkpoint_loses_nothing(tmp_pa
     ("overrides", "message"),
     [
         (dict(population_size=10, n_robots=4), r"population_size \(10\) must be divisible"),
-        (dict(crossover_probability=1.5), r"crossover_probability must be .* \[0.0, 1.0\]"),
-        (dict(mutation_probability=-0.1), r"mutation_probability must be .* \[0.0, 1.0\]"),
+        (dict(crossover_probability=1.5), r"crossover_probability must be .* \[0, 1\]"),
+        (dict(mutation_probability=-0.1), r"mutation_probability must be .* \[0, 1\]"),
         (dict(time_sharing_steps=500), r"time_sharing_steps must be an integer in \[1, 400\]"),
         (dict(n_packs=-1), r"n_packs must be an integer in \[0,"),
         (dict(lifetime=400), r"unknown config override\(s\) lifetime; allowed: .*lifetime_steps"),

@@ -1,4 +1,4 @@
-"""The runner's in-place perception equals the public vision and behaviour-input functions.
+"""The runner's perception equals the public vision and behaviour-input functions.
 
 :class:`evolution.runner.Perception` recomputes, into reused buffers, what
 ``GeometricVision.observe`` and ``behaviours.behaviour_inputs`` return (it skips their per-call
@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from behaviours import behaviour_inputs
-from behaviours.inputs import proximity
 from cyber_rodent.constants import PROXIMITY_SIX
 from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.vision import BATTERY, FACE, LED, CameraConfig, VisionNoise, make_provider
@@ -35,21 +34,21 @@ def _scatter(world: World, rng: np.random.Generator, spread: float) -> None:
 
 
 def _check_equal(perception: Perception, frame, world: World) -> None:
-    np.testing.assert_array_equal(perception.visible, frame.visible)
-    np.testing.assert_array_equal(perception.bearing, frame.bearing)
-    np.testing.assert_array_equal(perception.distance, frame.distance)
+    np.testing.assert_array_equal(perception.nearest.visible, frame.visible)
+    np.testing.assert_array_equal(perception.nearest.bearing, frame.bearing)
+    np.testing.assert_array_equal(perception.nearest.distance, frame.distance)
     ranges = world.range_readings()
-    np.testing.assert_array_equal(perception.ranges, ranges)
+    np.testing.assert_array_equal(perception.sensors.ranges, ranges)
     expected = behaviour_inputs(frame, ranges, world.range_max)
-    got = perception.inputs
+    got = perception.inputs.behaviour
     for name in ("mate", "forage", "search", "mate_available", "forage_available"):
         np.testing.assert_array_equal(getattr(got, name), getattr(expected, name), err_msg=name)
-    np.testing.assert_array_equal(
-        perception.proximity, proximity(ranges[:, list(PROXIMITY_SIX)], world.range_max[:, :6])
-    )
+    columns = list(PROXIMITY_SIX)  # proximity = clip(1 - range / range_max, 0, 1)
+    expected_proximity = np.clip(1.0 - ranges[:, columns] / world.range_max[:, columns], 0, 1)
+    np.testing.assert_array_equal(perception.inputs.proximity, expected_proximity)
     for cls in (LED, FACE, BATTERY):
         np.testing.assert_array_equal(
-            perception.norm_distance[:, cls],
+            perception.inputs.norm_distance[:, cls],
             normalise_distance(frame.distance[:, cls], frame.visible[:, cls]),
         )
 
@@ -88,11 +87,11 @@ def test_unseen_targets_map_to_ahead_and_far() -> None:
     # One robot, no packs: it sees nothing at all.
     world = World(WorldConfig(n_robots=1, n_packs=0))
     perception = Perception(world, make_provider("geometric", world))
-    inputs = perception.update()
-    assert not perception.visible.any()
+    inputs = perception.update().behaviour
+    assert not perception.nearest.visible.any()
     np.testing.assert_array_equal(inputs.mate, [[0.5, 1.0]])
     np.testing.assert_array_equal(inputs.forage, [[0.5, 1.0]])
-    np.testing.assert_array_equal(perception.norm_distance, [[1.0, 1.0, 1.0]])
+    np.testing.assert_array_equal(perception.inputs.norm_distance, [[1.0, 1.0, 1.0]])
     assert not inputs.mate_available[0] and not inputs.forage_available[0]
 
 
@@ -107,9 +106,9 @@ def test_proximity_hand_computed() -> None:
     perception.update()
     ranges = world.range_readings()
     assert ranges[0, 0] < 0.3
-    assert perception.proximity[0, 0] == pytest.approx(1.0 - ranges[0, 0] / 1.0)
+    assert perception.inputs.proximity[0, 0] == pytest.approx(1.0 - ranges[0, 0] / 1.0)
     # The back sensor (range 0.3 m) sees nothing: proximity 0.
-    assert perception.proximity[0, 5] == 0.0
+    assert perception.inputs.proximity[0, 5] == 0.0
     # Search's inputs are the two largest proximities, in decreasing order.
-    top = np.sort(perception.proximity[0])[::-1][:2]
-    np.testing.assert_array_equal(perception.inputs.search[0], top)
+    top = np.sort(perception.inputs.proximity[0])[::-1][:2]
+    np.testing.assert_array_equal(perception.inputs.behaviour.search[0], top)

@@ -165,6 +165,7 @@ def test_local_sweep_equals_serial_runs(tmp_path: Path) -> None:
     assert sorted(loaded) == ["ce", "ee"] and len(loaded["ee"]) == 2
 
 
+@pytest.mark.slow
 def test_ray_sweep_equals_serial_runs(tmp_path: Path) -> None:
     pytest.importorskip("ray")
     spec = SweepSpec(("ee",), (0, 1), 1, TINY_OVERRIDES, policies="reactive")

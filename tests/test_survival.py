@@ -262,3 +262,113 @@ def test_bad_flags_and_energy_raise():
         sw.set_energy(0, 250.0)
     with pytest.raises(ValueError, match="energy"):
         sw.set_energy(0, -1.0)
+
+
+# --- run state (checkpoints) -------------------------------------------------------------------
+STATE_CONFIG = SurvivalConfig(mate_consecutive_steps=3)
+#: Model fields a run changes (pack placement, docking welds, LED colours); a checkpoint saves
+#: them with the physics.
+RUN_MODEL_FIELDS = ("body_pos", "eq_data", "geom_rgba")
+
+
+def state_scene(seed: int) -> SurvivalWorld:
+    """Robot 0 in front of pack 0 (it docks); robots 1 and 2 face each other 0.3 m apart."""
+    sw = SurvivalWorld(
+        WorldConfig(n_robots=3, n_packs=1), STATE_CONFIG, np.random.default_rng(seed)
+    )
+    w = sw.world
+    w.set_pack_position(0, 0.0, 0.5)
+    sw.refresh_pack_positions()
+    w.set_robot_pose(0, -0.5, 0.5, 0.0)
+    w.set_robot_pose(1, -0.26, -0.5, 0.0)
+    w.set_robot_pose(2, 0.26, -0.5, math.pi)
+    mujoco.mj_forward(w.model, w.data)
+    return sw
+
+
+def scripted_commands(rng: np.random.Generator, k: int) -> tuple[np.ndarray, ...]:
+    """Robot 0 drives into its pack, then wanders; robots 1 and 2 stand and signal Mate."""
+    wheels = np.zeros((3, 2))
+    wheels[0] = (0.4, 0.4) if k < 15 else rng.uniform(-0.6, 0.6, size=2)
+    led = rng.random(3) < 0.5
+    mate = rng.random(3) < 0.8
+    continue_recharge = rng.random(3) < 0.85
+    return wheels, led, mate, continue_recharge
+
+
+def assert_same_state(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for key, value in a.items():
+        if isinstance(value, np.ndarray):
+            assert value.dtype == b[key].dtype, key
+            np.testing.assert_array_equal(value, b[key], err_msg=key)
+        elif isinstance(value, dict) and key != "rng":
+            assert_same_state(value, b[key])
+        else:
+            assert value == b[key], key
+
+
+def test_state_and_load_state_resume_a_world_bit_identically():
+    rng = np.random.default_rng(11)
+    original = state_scene(0)
+    # Step until the state is not a trivial one: a reflex under way and a mating streak.
+    k = 0
+    while not (original.reflex_steps_left[0] and original.mating.streak[1, 2]):
+        original.step(*scripted_commands(rng, k))
+        k += 1
+        assert k < 200, "no reflex with a mating streak"
+    state = original.state()
+    # Plain data only: arrays, Python scalars, and dicts of those.
+    for key, value in [*state.items(), *state["events"].items(), *state["rng"].items()]:
+        assert isinstance(value, np.ndarray | bool | int | float | str | dict), key
+
+    resumed = SurvivalWorld(WorldConfig(n_robots=3, n_packs=1), STATE_CONFIG)
+    views = {name: getattr(resumed, name) for name in ("energy", "docked", "reflex_wheels")}
+    m, d = resumed.world.model, resumed.world.data
+    for name in RUN_MODEL_FIELDS:
+        getattr(m, name)[...] = getattr(original.world.model, name)
+    mujoco.mj_copyData(d, m, original.world.data)
+    resumed.load_state(state)
+    assert all(getattr(resumed, name) is view for name, view in views.items())  # in place
+    assert_same_state(resumed.state(), state)
+
+    mated = 0
+    for j in range(k, k + 50):
+        commands = scripted_commands(rng, j)
+        a, b = original.step(*commands), resumed.step(*commands)
+        assert repr(a) == repr(b)
+        for name in a.ARRAYS:
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+        assert_same_state(original.state(), resumed.state())
+        np.testing.assert_array_equal(original.world.data.qpos, resumed.world.data.qpos)
+        np.testing.assert_array_equal(original.world.data.qvel, resumed.world.data.qvel)
+        np.testing.assert_array_equal(original.world.data.ctrl, resumed.world.data.ctrl)
+        np.testing.assert_array_equal(original.world.model.geom_rgba, resumed.world.model.geom_rgba)
+        mated += len(a.matings())
+    assert mated and not original.reflex_steps_left[0]  # streaks and reflex were carried on
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (lambda s: s.pop("energy"), r"missing keys \['energy'\]"),
+        (lambda s: s.__setitem__("extra", 1), r"unknown keys \['extra'\]"),
+        (lambda s: s.__setitem__("energy", np.zeros(4)), r"\['energy'\] must be a float64 array"),
+        (lambda s: s.__setitem__("docked", np.zeros(3)), r"\['docked'\] must be a bool array"),
+        (lambda s: s["events"].pop("died"), r"\['events'\] .*missing keys \['died'\]"),
+        (lambda s: s.__setitem__("step_count", 1.5), r"\['step_count'\] must be an integer"),
+        (lambda s: s.__setitem__("mid_step", 0), r"\['mid_step'\] must be true or false"),
+        (lambda s: s["rng"].__setitem__("bit_generator", "MT19937"), "PCG64 generator"),
+        (lambda s: s["rng"]["state"].pop("inc"), r"\['rng'\] is not a generator state"),
+    ],
+)
+def test_load_state_refuses_a_state_that_does_not_fit(change, match):
+    sw = state_scene(0)
+    sw.step(*scripted_commands(np.random.default_rng(0), 0))
+    state = sw.state()
+    state["energy"] += 1.0
+    change(state)
+    before = sw.state()
+    with pytest.raises(ValueError, match=match):
+        sw.load_state(state)
+    assert_same_state(sw.state(), before)  # nothing was written

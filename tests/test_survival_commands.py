@@ -50,7 +50,7 @@ def test_bad_indices_raise(indices, match):
 def test_unknown_name_and_over_limit_command_raise():
     with pytest.raises(ValueError, match="unknown wheel command 'jump'; known commands: forward"):
         commands.command_index("jump")
-    with pytest.raises(ValueError, match=r"left must be in \[-1.3, 1.3\]"):
+    with pytest.raises(ValueError, match=r"left must be a number in \[-1.3, 1.3\]"):
         commands.WheelCommand("rocket", 2.0, 2.0)
 
 

@@ -14,12 +14,15 @@ import mujoco
 import numpy as np
 import pytest
 
-from cyber_rodent import compiled
 from cyber_rodent.render import FieldRenderer
 from cyber_rodent.vision import FACE, LED, CameraConfig
-from cyber_rodent.vision import batch_rendering as br
 from cyber_rodent.vision.agreement import random_scene
-from cyber_rodent.vision.batch_rendering import BatchOmniRenderer, build_geometry, geom_mesh
+from cyber_rodent.vision.batch_rendering import (
+    BatchOmniRenderer,
+    build_geometry,
+    geom_mesh,
+    kernels,
+)
 from cyber_rodent.vision.rendering import OmniRenderer
 from cyber_rodent.vision.segmentation import OmniSegmenter
 from cyber_rodent.vision.targets import target_geometry
@@ -336,38 +339,22 @@ def test_meshes_are_closed_outward_and_of_the_right_volume() -> None:
                 assert signed >= 0.75 * volume[name], name
 
 
-@pytest.mark.skipif(not compiled.AVAILABLE, reason="numba is not installed")
 def test_compiled_views_match_numpy(world, renderers) -> None:
     _, batch = renderers
-    d, m = world.data, world.model
+    m = world.model
     for seed in range(10):
         _scene(world, 100 + seed)
         if seed % 3 == 0:
             m.geom_rgba[batch.geometry.geoms[seed], 3] = 0.0  # a hidden geom splits runs
         outputs = []
-        for fn in (br._frame_views, br._frame_views_numpy):
-            clip = np.zeros(batch._clip_t.shape, np.float32)
-            head = np.zeros(batch._head.shape, np.float32)
-            commands = np.zeros_like(batch._commands)
-            n = fn(
-                d.site_xmat[batch._cam_site].reshape(-1, 3, 3),
-                d.site_xpos[batch._cam_site],
-                d.geom_xpos[batch._drawn],
-                m.geom_rgba[batch._drawn, 3],
-                batch._site_clip_t,
-                batch._site_planes,
-                batch._view_back,
-                batch._rbound,
-                batch._lod_depth,
-                batch.geometry.same_at_all_levels,
-                batch.config.near_clip,
-                batch._own,
-                batch.geometry.index_start,
-                clip,
-                head,
-                commands,
+        for fn in (kernels.frame_views, kernels.frame_views_reference):
+            out = kernels.ViewOutputs(
+                clip_t=np.zeros(batch.view_outputs.clip_t.shape, np.float32),
+                head=np.zeros(batch.view_outputs.head.shape, np.float32),
+                commands=np.zeros_like(batch.view_outputs.commands),
             )
-            outputs.append((n, clip, head, commands[:n].copy()))
+            n = fn(batch.state, batch.view_geometry, out)
+            outputs.append((n, out.clip_t, out.head, out.commands[:n].copy()))
         m.geom_rgba[batch.geometry.geoms[seed], 3] = 1.0
         (n0, clip0, head0, cmd0), (n1, clip1, head1, cmd1) = outputs
         assert n0 == n1 > 0
@@ -376,9 +363,26 @@ def test_compiled_views_match_numpy(world, renderers) -> None:
         np.testing.assert_allclose(head0, head1, atol=1e-6)
 
 
+def test_numpy_backend_renders_the_same_images(world, renderers) -> None:
+    """The renderer built with the numpy views kernel draws exactly what the compiled one does."""
+    _, batch = renderers
+    assert batch.backend == "numba"
+    with BatchOmniRenderer(world, CameraConfig(), backend="numpy") as reference:
+        assert reference.backend == "numpy"
+        for seed in (0, 3):
+            _scene(world, seed)
+            np.testing.assert_array_equal(reference.render(), batch.render())
+
+
+def test_unknown_backend_is_refused(world) -> None:
+    with pytest.raises(ValueError, match="backend must be one of numba, numpy"):
+        BatchOmniRenderer(world, CameraConfig(), backend="gpu")  # type: ignore[arg-type]
+
+
 def test_rendered_vision_picks_its_renderer() -> None:
     """RenderedVision renders with the batch renderer under EGL (the default), with MuJoCo's on
-    request, and names the allowed renderers for anything else."""
+    request, passes its backend to the renderer and the segmenter, and names the allowed
+    renderers for anything else."""
     from cyber_rodent.vision.rendered import RenderedVision
 
     world = World(WorldConfig(n_robots=2, n_packs=1))
@@ -386,5 +390,8 @@ def test_rendered_vision_picks_its_renderer() -> None:
         assert isinstance(vision.renderer, BatchOmniRenderer)
     with RenderedVision(world, renderer="mujoco") as vision:
         assert isinstance(vision.renderer, OmniRenderer)
+    with RenderedVision(world, backend="numpy") as vision:
+        assert isinstance(vision.renderer, BatchOmniRenderer)
+        assert vision.renderer.backend == vision.segmenter.backend == "numpy"
     with pytest.raises(ValueError, match="renderer must be one of auto, batch, mujoco"):
         RenderedVision(world, renderer="vulkan")

@@ -23,9 +23,6 @@ def test_nearest_targets_equal_observe(n_robots: int, n_packs: int) -> None:
     world = World(WorldConfig(n_robots=n_robots, n_packs=n_packs))
     vision = make_provider("geometric", world)
     rng = np.random.default_rng(100 * n_robots + n_packs)
-    bearing = np.zeros((n_robots, 3))
-    distance = np.zeros((n_robots, 3))
-    visible = np.zeros((n_robots, 3), dtype=bool)
     seen, hidden_nearest = 0, 0
     for trial in range(60):
         world.reset(rng)
@@ -36,15 +33,15 @@ def test_nearest_targets_equal_observe(n_robots: int, n_packs: int) -> None:
         world.set_led(rng.random(n_robots) < 0.6)
         mujoco.mj_forward(world.model, world.data)
         frame = vision.observe()
-        vision.nearest_targets(bearing, distance, visible)
-        np.testing.assert_array_equal(visible, frame.visible)
-        np.testing.assert_array_equal(distance, frame.distance)
-        np.testing.assert_array_equal(bearing, frame.bearing)
+        nearest = vision.nearest_targets()
+        np.testing.assert_array_equal(nearest.visible, frame.visible)
+        np.testing.assert_array_equal(nearest.distance, frame.distance)
+        np.testing.assert_array_equal(nearest.bearing, frame.bearing)
         seen += int(frame.visible.sum())
         # Count cases where the nearest candidate (in range, lit, facing, large enough) was
         # hidden, so the lazy pass had to try the next one.
-        candidate = vision._front().candidate
         t = vision.measure_targets()
+        candidate = t.candidate
         for i in range(n_robots):
             for c in range(3):
                 cols = np.flatnonzero((vision.target_cls == c) & candidate[i])
@@ -59,7 +56,6 @@ def test_nearest_targets_small_blob_threshold() -> None:
     world = World(WorldConfig(n_robots=4, n_packs=5))
     vision = make_provider("geometric", world, CameraConfig(min_blob_area=(4, 40, 40)))
     rng = np.random.default_rng(5)
-    out = np.zeros((4, 3)), np.zeros((4, 3)), np.zeros((4, 3), dtype=bool)
     for trial in range(40):
         world.reset(rng)
         for i in range(4):
@@ -68,7 +64,7 @@ def test_nearest_targets_small_blob_threshold() -> None:
         world.set_led(rng.random(4) < 0.6)
         mujoco.mj_forward(world.model, world.data)
         frame = vision.observe()
-        vision.nearest_targets(*out)
-        np.testing.assert_array_equal(out[2], frame.visible)
-        np.testing.assert_array_equal(out[1], frame.distance)
-        np.testing.assert_array_equal(out[0], frame.bearing)
+        nearest = vision.nearest_targets()
+        np.testing.assert_array_equal(nearest.visible, frame.visible)
+        np.testing.assert_array_equal(nearest.distance, frame.distance)
+        np.testing.assert_array_equal(nearest.bearing, frame.bearing)

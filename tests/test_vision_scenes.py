@@ -213,8 +213,8 @@ def test_compiled_and_opencv_segmentation_identical_on_rendered_scenes() -> None
     """The default (compiled) segmentation finds exactly the OpenCV reference's blobs."""
     world = World(WorldConfig(n_robots=4, n_packs=5))
     with RenderedVision(world) as ren:
-        assert ren.segmenter.backend == "compiled"
-        reference = OmniSegmenter(ren.config, target_geometry(world), backend="opencv")
+        assert ren.segmenter.backend == "numba"
+        reference = OmniSegmenter(ren.config, target_geometry(world), backend="numpy")
         for s in range(6):
             random_scene(world, np.random.default_rng([7, s]))
             strips = ren.renderer.render()

@@ -1,8 +1,10 @@
 """The compiled segmentation backend against the OpenCV reference, and on hand-made strips.
 
-The compiled backend (:mod:`cyber_rodent.vision.segmentation_kernel`) must classify every pixel
-exactly as OpenCV's cvtColor + inRange do, and find the same blobs with the same statistics, in
-the same order; on hand-made strips the blob counts are known by construction.
+The compiled backend (``backend="numba"``, :mod:`cyber_rodent.vision.segmentation_kernels`) must
+classify every pixel exactly as OpenCV's cvtColor + inRange do (``backend="numpy"``), and find
+the same blobs with the same statistics, in the same order; on hand-made strips the blob counts
+are known by construction. The pack grouping's pair test has a compiled kernel and a numpy
+reference, which must join the same blobs.
 """
 
 from __future__ import annotations
@@ -11,11 +13,9 @@ import numpy as np
 import pytest
 
 from cyber_rodent.vision import BATTERY, FACE, LED, CameraConfig
-from cyber_rodent.vision import segmentation_kernel as kernel
+from cyber_rodent.vision import segmentation_kernels as kernels
 from cyber_rodent.vision.segmentation import OmniSegmenter
 from cyber_rodent.vision.targets import TargetGeometry, TargetShape
-
-pytestmark = pytest.mark.skipif(not kernel.AVAILABLE, reason="numba is not installed")
 
 CONFIG = CameraConfig(n_views=4, view_width=16, height=12)
 PACK = TargetShape(cls=BATTERY, plate=False, half_width=0.04, z_bottom=0.0, z_top=0.1)
@@ -23,13 +23,13 @@ FACE_PLATE = TargetShape(cls=FACE, plate=True, half_width=0.045, z_bottom=0.054,
 LED_RING = TargetShape(cls=LED, plate=False, half_width=0.022, z_bottom=0.103, z_top=0.117)
 GEOMETRY = TargetGeometry(camera_height=0.17, shapes=(LED_RING, FACE_PLATE, PACK))
 GREEN, RED, BLUE, GREY = (25, 230, 25), (230, 13, 13), (13, 38, 230), (140, 140, 140)
-CONFIG_BEARING = OmniSegmenter(CONFIG, GEOMETRY, backend="opencv").projection.column_bearing
+CONFIG_BEARING = OmniSegmenter(CONFIG, GEOMETRY, backend="numpy").projection.column_bearing
 
 
 def _segmenters(config: CameraConfig = CONFIG) -> tuple[OmniSegmenter, OmniSegmenter]:
     return (
-        OmniSegmenter(config, GEOMETRY, backend="compiled"),
-        OmniSegmenter(config, GEOMETRY, backend="opencv"),
+        OmniSegmenter(config, GEOMETRY, backend="numba"),
+        OmniSegmenter(config, GEOMETRY, backend="numpy"),
     )
 
 
@@ -90,7 +90,7 @@ def test_worst_case_run_count_grows_the_buffers() -> None:
     strips[:, ::2, ::2] = BLUE
     strips[:, 1::2, 1::2] = RED
     _assert_same(fast.detect(strips), ref.detect(strips))
-    assert fast._labeller is not None and fast._labeller.capacity == fast._labeller.worst
+    assert fast.labeller is not None and fast.labeller.capacity == fast.labeller.worst
 
 
 def test_empty_strips() -> None:
@@ -101,6 +101,36 @@ def test_empty_strips() -> None:
     _assert_same(out, ref.detect(strips))
 
 
-def test_unknown_backend_is_refused() -> None:
+def test_backends_are_named_and_unknown_ones_refused() -> None:
+    fast, ref = _segmenters()
+    assert (fast.backend, ref.backend) == ("numba", "numpy")
+    assert OmniSegmenter(CONFIG, GEOMETRY).backend == "numba"
     with pytest.raises(ValueError, match="backend must be one of"):
-        OmniSegmenter(CONFIG, GEOMETRY, backend="gpu")
+        OmniSegmenter(CONFIG, GEOMETRY, backend="gpu")  # type: ignore[arg-type]
+
+
+def test_stacked_pair_test_kernel_matches_reference() -> None:
+    """Random blob sets, many near the thresholds: the same pairs joined, the same roots."""
+    rng = np.random.default_rng(3)
+    n_joined = 0
+    for _ in range(300):
+        k = int(rng.integers(2, 9))
+        bearing = rng.uniform(-np.pi, np.pi, k)
+        bearing[1:] = np.where(rng.random(k - 1) < 0.6, bearing[0] + rng.normal(0, 0.02, k - 1),
+                               bearing[1:])  # fmt: skip
+        half = rng.uniform(0.01, 0.1, k)
+        lo, hi = -half * rng.uniform(0.8, 1.2, k), half * rng.uniform(0.8, 1.2, k)
+        top = rng.integers(0, 100, k)
+        bottom = top + rng.integers(0, 20, k)
+        parents = []
+        joined = []
+        for fn in (kernels.join_stacked, kernels.join_stacked_reference):
+            parent = np.arange(k)
+            joined.append(fn(bearing, lo, hi, top, bottom, parent))
+            while not np.array_equal(parent[parent], parent):
+                parent = parent[parent]
+            parents.append(parent)
+        assert joined[0] == joined[1]
+        np.testing.assert_array_equal(parents[0], parents[1])
+        n_joined += joined[0]
+    assert 30 < n_joined < 270

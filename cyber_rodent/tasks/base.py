@@ -42,15 +42,17 @@ from __future__ import annotations
 import inspect
 import math
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from dm_control.mjcf import Physics
 from dm_control.rl import control
 from dm_env import specs
 
 from cyber_rodent import constants as C
 from cyber_rodent.survival import StepEvents, SurvivalConfig, SurvivalWorld
-from cyber_rodent.vision import BATTERY, FACE, LED, CameraConfig, make_provider
+from cyber_rodent.vision import BATTERY, FACE, LED, CameraConfig, VisionFrame, make_provider
 from cyber_rodent.world import World, WorldConfig
 
 #: Observation names in a stable order (also the order of a flattened observation).
@@ -65,10 +67,11 @@ OBSERVATION_NAMES = (
     "recharge_steps",
 )
 _TARGET_OBSERVATIONS = (("nearest_led", LED), ("nearest_face", FACE), ("nearest_battery", BATTERY))
-_ON = 0.5  # threshold of the [0, 1] switch actions
+#: Threshold of the [0, 1] switch actions (``led``, ``mate``, ``recharge``): on above it.
+SWITCH_ON = 0.5
 
 
-class CyberRodentTask(control.Task):
+class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no type hints
     """Base class of the tasks; subclasses set defaults and rewards.
 
     Args:
@@ -131,9 +134,9 @@ class CyberRodentTask(control.Task):
         self.world = world
         # The provider gets its own stream, so its noise never shifts the placement draws.
         self.vision = make_provider(vision, world, camera, rng.spawn(1)[0])
-        self.camera = getattr(self.vision, "config", camera or CameraConfig())
+        self.camera = self.vision.config
         self.max_range = float(self.camera.max_range)
-        self.frame = None
+        self.frame: VisionFrame | None = None
         n = world.config.n_robots
         # Commands of all robots, rebuilt from the action every step (preallocated).
         self._wheels = np.zeros((n, 2))
@@ -146,7 +149,7 @@ class CyberRodentTask(control.Task):
 
     # --- specs -------------------------------------------------------------------------------
     @property
-    def physics(self):
+    def physics(self) -> Physics:
         """The dm-control ``Physics`` of the world (its MjModel/MjData are the world's)."""
         return self.world.physics
 
@@ -178,10 +181,12 @@ class CyberRodentTask(control.Task):
         )
         return spec
 
-    def action_spec(self, physics=None) -> OrderedDict[str, specs.BoundedArray]:
+    def action_spec(self, physics: Physics | None = None) -> OrderedDict[str, specs.BoundedArray]:
         return self._action_spec
 
-    def observation_spec(self, physics=None) -> OrderedDict[str, specs.BoundedArray]:
+    def observation_spec(
+        self, physics: Physics | None = None
+    ) -> OrderedDict[str, specs.BoundedArray]:
         return self._observation_spec
 
     def reward_spec(self) -> specs.Array:
@@ -189,7 +194,7 @@ class CyberRodentTask(control.Task):
         return specs.Array((self.k,), np.float64, name="reward")
 
     # --- episode -----------------------------------------------------------------------------
-    def initialize_episode(self, physics) -> None:
+    def initialize_episode(self, physics: Physics) -> None:
         """New placement and newborn energies; subclasses add start conditions."""
         self.survival.reset(self._rng)
         self.world.set_led(False)
@@ -200,7 +205,9 @@ class CyberRodentTask(control.Task):
     def _start_episode(self) -> None:
         """Hook: task-specific initial state (placement is already drawn)."""
 
-    def _redraw_until(self, condition, what: str, attempts: int = 200) -> None:
+    def _redraw_until(
+        self, condition: Callable[[VisionFrame], object], what: str, attempts: int = 200
+    ) -> None:
         """Re-draw the placement until ``condition(frame)`` holds (a start condition)."""
         for _ in range(attempts):
             if condition(self.vision.observe()):
@@ -212,12 +219,12 @@ class CyberRodentTask(control.Task):
     def _start_state(self) -> None:
         """Hook: state to restore after every re-draw of the placement (e.g. LEDs)."""
 
-    def before_step(self, action: Any, physics=None) -> None:
+    def before_step(self, action: Any, physics: Physics | None = None) -> None:
         """Validate the action and hand the commands to the world (``begin_step``)."""
         self._read_action(action)
         self.survival.begin_step(self._wheels, self._led, self._mate, self._recharge)
 
-    def after_step(self, physics=None) -> None:
+    def after_step(self, physics: Physics | None = None) -> None:
         """Energy, docking, mating (``end_step``), then what every robot sees."""
         self.last_events = self.survival.end_step()
         self.frame = self.vision.observe()
@@ -253,7 +260,7 @@ class CyberRodentTask(control.Task):
             values[key] = value
         self._wheels[:k] = values["wheels"]
         self._wheels[k:] = 0.0
-        np.greater(values["led"], _ON, out=self._led[:k])
+        np.greater(values["led"], SWITCH_ON, out=self._led[:k])
         self._led[k:] = False
         self._set_decisions(values)
 
@@ -263,10 +270,12 @@ class CyberRodentTask(control.Task):
         self._recharge[:] = False
 
     # --- observations --------------------------------------------------------------------------
-    def get_observation(self, physics=None) -> OrderedDict[str, np.ndarray]:
+    def get_observation(self, physics: Physics | None = None) -> OrderedDict[str, np.ndarray]:
         k = self.k
         sw = self.survival
         frame = self.frame
+        if frame is None:
+            raise RuntimeError("no observation before the first episode is initialised")
         obs = OrderedDict()
         obs["range"] = self.world.range_readings()[:k]
         for key, cls in _TARGET_OBSERVATIONS:
@@ -285,10 +294,10 @@ class CyberRodentTask(control.Task):
         return obs
 
     # --- reward and termination (subclasses) -----------------------------------------------------
-    def get_reward(self, physics=None) -> np.ndarray:
+    def get_reward(self, physics: Physics | None = None) -> np.ndarray:
         raise NotImplementedError
 
-    def get_termination(self, physics=None) -> float | None:
+    def get_termination(self, physics: Physics | None = None) -> float | None:
         """Discount 0 if a controlled robot died (its energy reached 0), else continue."""
         if not self.survival.alive[: self.k].all():
             return 0.0
@@ -300,7 +309,7 @@ class CyberRodentTask(control.Task):
         names = []
         for klass in cls.__mro__:
             if "__init__" in vars(klass):
-                sig = inspect.signature(klass.__init__)
+                sig = inspect.signature(vars(klass)["__init__"])
                 names += [
                     p.name
                     for p in sig.parameters.values()

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from dm_control.rl import control
 from dm_env import specs
 
+from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.tasks.base import CyberRodentTask
 from cyber_rodent.tasks.forage import Forage
 from cyber_rodent.tasks.mate import Mate
@@ -22,7 +25,7 @@ TASKS: dict[str, type[CyberRodentTask]] = {
 TASK_NAMES = tuple(TASKS)
 
 
-class CyberRodentEnvironment(control.Environment):
+class CyberRodentEnvironment(control.Environment):  # type: ignore[misc]  # dm_control: no hints
     """``dm_control.rl.control.Environment`` with the Cyber Rodent conventions.
 
     * One control step is ``SurvivalConfig.control_dt`` (0.1 s) of physics substeps, stepped
@@ -45,13 +48,14 @@ class CyberRodentEnvironment(control.Environment):
         return self._task.reward_spec()
 
     @property
-    def survival(self):
+    def survival(self) -> SurvivalWorld:
         """The :class:`~cyber_rodent.survival.SurvivalWorld` under the task."""
-        return self._task.survival
+        task: CyberRodentTask = self._task
+        return task.survival
 
 
 def load(
-    name: str, seed: int | np.random.Generator | None = None, **options
+    name: str, seed: int | np.random.Generator | None = None, **options: Any
 ) -> CyberRodentEnvironment:
     """Create the task ``name`` as a ``dm_env`` environment.
 

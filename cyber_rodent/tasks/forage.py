@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from dm_control.mjcf import Physics
 
 from cyber_rodent.tasks.base import CyberRodentTask
 from cyber_rodent.vision import BATTERY
@@ -35,7 +38,7 @@ class Forage(CyberRodentTask):
     name = "forage"
     n_controlled = 1
 
-    def __init__(self, rng: np.random.Generator, *, start_in_view: bool = True, **options):
+    def __init__(self, rng: np.random.Generator, *, start_in_view: bool = True, **options: Any):
         options.setdefault("n_robots", 1)
         options.setdefault("episode_steps", 100)
         self.start_in_view = bool(start_in_view)
@@ -51,10 +54,10 @@ class Forage(CyberRodentTask):
         self._mate[:] = False
         self._recharge[:] = True  # a capture ends the episode anyway
 
-    def get_reward(self, physics=None) -> np.ndarray:
+    def get_reward(self, physics: Physics | None = None) -> np.ndarray:
         return np.array([1.0 if self.last_events.docked[0] else 0.0])
 
-    def get_termination(self, physics=None) -> float | None:
+    def get_termination(self, physics: Physics | None = None) -> float | None:
         if self.last_events.docked[0] or not self.survival.alive[0]:
             return 0.0
         return None

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from dm_control.mjcf import Physics
 
 from cyber_rodent.tasks.base import CyberRodentTask
-from cyber_rodent.vision import FACE, LED
+from cyber_rodent.vision import FACE, LED, VisionFrame
 
 
 class Mate(CyberRodentTask):
@@ -43,7 +46,7 @@ class Mate(CyberRodentTask):
     name = "mate"
     n_controlled = 2
 
-    def __init__(self, rng: np.random.Generator, *, start_in_view: bool = True, **options):
+    def __init__(self, rng: np.random.Generator, *, start_in_view: bool = True, **options: Any):
         options.setdefault("n_robots", 2)
         options.setdefault("n_packs", 0)
         options.setdefault("episode_steps", 100)
@@ -59,7 +62,7 @@ class Mate(CyberRodentTask):
         self._start_state()
         if self.start_in_view:
 
-            def see_each_other(frame) -> bool:
+            def see_each_other(frame: VisionFrame) -> bool:
                 sees = frame.visible[:2, LED] | frame.visible[:2, FACE]
                 return bool(sees.all())
 
@@ -73,10 +76,10 @@ class Mate(CyberRodentTask):
     def _mated(self) -> bool:
         return bool(self.last_events.mate_partner[0] == 1)
 
-    def get_reward(self, physics=None) -> np.ndarray:
+    def get_reward(self, physics: Physics | None = None) -> np.ndarray:
         return np.full(2, 1.0 if self._mated() else 0.0)
 
-    def get_termination(self, physics=None) -> float | None:
+    def get_termination(self, physics: Physics | None = None) -> float | None:
         if self._mated() or not self.survival.alive[:2].all():
             return 0.0
         return None

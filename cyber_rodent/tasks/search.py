@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+from dm_control.mjcf import Physics
 
 from cyber_rodent.tasks.base import CyberRodentTask
 
@@ -44,7 +47,7 @@ class Search(CyberRodentTask):
         *,
         reference_speed: float = 0.5,
         collision_penalty: float = 1.0,
-        **options,
+        **options: Any,
     ):
         if not (np.isfinite(reference_speed) and reference_speed > 0):
             raise ValueError(f"reference_speed must be > 0 m/s, got {reference_speed!r}")
@@ -62,18 +65,18 @@ class Search(CyberRodentTask):
         self._mate[:] = False
         self._recharge[:] = False
 
-    def before_step(self, action, physics=None) -> None:
+    def before_step(self, action: Any, physics: Physics | None = None) -> None:
         super().before_step(action, physics)
         self._start_pose[:] = self.world.poses()[0]
 
-    def after_step(self, physics=None) -> None:
+    def after_step(self, physics: Physics | None = None) -> None:
         super().after_step(physics)
         x, y, _ = self.world.poses()[0]
         x0, y0, yaw0 = self._start_pose
         self._progress = (x - x0) * np.cos(yaw0) + (y - y0) * np.sin(yaw0)
         self.survival.collisions(out=self._collided)
 
-    def get_reward(self, physics=None) -> np.ndarray:
+    def get_reward(self, physics: Physics | None = None) -> np.ndarray:
         dt = self.survival.config.control_dt
         progress = np.clip(self._progress / (self.reference_speed * dt), -1.0, 1.0)
         return np.array([progress - self.collision_penalty * float(self._collided[0])])

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from collections import OrderedDict
+from typing import Any
 
 import numpy as np
+from dm_control.mjcf import Physics
 from dm_env import specs
 
-from cyber_rodent.tasks.base import _ON, CyberRodentTask
+from cyber_rodent.tasks.base import SWITCH_ON, CyberRodentTask
 
 
 class Survival(CyberRodentTask):
@@ -50,7 +52,7 @@ class Survival(CyberRodentTask):
         *,
         dock_reward: float = 1.0,
         mate_reward: float = 1.0,
-        **options,
+        **options: Any,
     ):
         options.setdefault("episode_steps", 400)
         for key, value in (("dock_reward", dock_reward), ("mate_reward", mate_reward)):
@@ -67,10 +69,10 @@ class Survival(CyberRodentTask):
         return spec
 
     def _set_decisions(self, values: dict[str, np.ndarray]) -> None:
-        np.greater(values["mate"], _ON, out=self._mate)
-        np.greater(values["recharge"], _ON, out=self._recharge)
+        np.greater(values["mate"], SWITCH_ON, out=self._mate)
+        np.greater(values["recharge"], SWITCH_ON, out=self._recharge)
 
-    def get_reward(self, physics=None) -> np.ndarray:
+    def get_reward(self, physics: Physics | None = None) -> np.ndarray:
         ev = self.last_events
         reward = np.zeros(self.k)
         if ev.any:
@@ -78,6 +80,6 @@ class Survival(CyberRodentTask):
             reward += self.mate_reward * (ev.mate_partner >= 0)
         return reward
 
-    def get_termination(self, physics=None) -> float | None:
+    def get_termination(self, physics: Physics | None = None) -> float | None:
         """Discount 0 once every robot is dead."""
         return 0.0 if not self.survival.alive.any() else None

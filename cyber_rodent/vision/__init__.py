@@ -18,6 +18,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from cyber_rodent.backend import DEFAULT_BACKEND, Backend
 from cyber_rodent.vision.config import (
     BLUE_BATTERY,
     GREEN_LED,
@@ -45,7 +46,18 @@ PROVIDER_NAMES = ("geometric", "rendered")
 
 @runtime_checkable
 class VisionProvider(Protocol):
-    """Anything that reports what every robot of its bound world sees right now."""
+    """Anything that reports what every robot of its bound world sees right now.
+
+    Attributes:
+        world: the world whose robots look.
+        config: the camera; callers may replace it (a frozen config) between episodes, e.g.
+            to change the noise model.
+        rng: generator of the noise model (None: the config's noise is off).
+    """
+
+    world: World
+    config: CameraConfig
+    rng: np.random.Generator | None
 
     def observe(self) -> VisionFrame:
         """Vision of all robots of the bound world, from its current ``MjData`` state."""
@@ -57,6 +69,7 @@ def make_provider(
     world: World,
     config: CameraConfig | None = None,
     rng: np.random.Generator | None = None,
+    backend: Backend = DEFAULT_BACKEND,
 ) -> VisionProvider:
     """Create the vision provider ``name`` bound to ``world``.
 
@@ -65,6 +78,7 @@ def make_provider(
         world: the world whose robots look.
         config: the camera (default :class:`CameraConfig`).
         rng: generator for the optional noise model (required only if ``config.noise`` is on).
+        backend: ``"numba"`` (compiled kernels) or ``"numpy"`` (their references).
 
     Raises:
         ValueError: for an unknown provider name (the message lists the allowed names), or an
@@ -73,11 +87,11 @@ def make_provider(
     if config is not None and not isinstance(config, CameraConfig):
         raise ValueError(f"config must be a CameraConfig, got {type(config).__name__}")
     if name == "geometric":
-        return GeometricVision(world, config, rng)
+        return GeometricVision(world, config, rng, backend=backend)
     if name == "rendered":
         from cyber_rodent.vision.rendered import RenderedVision  # needs OpenGL: import lazily
 
-        return RenderedVision(world, config, rng)
+        return RenderedVision(world, config, rng, backend=backend)
     raise ValueError(
         f"unknown vision provider {name!r}; allowed names: {', '.join(PROVIDER_NAMES)}"
     )

@@ -24,10 +24,10 @@ corner factor ``sqrt(1 + tan²(π/n))``, so view centres see a little further do
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
-from cyber_rodent.vision.types import DEFAULT_MAX_DISTANCE, N_CLASSES
+from cyber_rodent.validation import check_integer, integer, number, validate_fields
+from cyber_rodent.vision.types import CLASS_NAMES, DEFAULT_MAX_DISTANCE, N_CLASSES
 
 #: The largest image dimension we accept (pixels per view horizontally, or rows). The render
 #: buffer must hold every robot's strip; OpenGL renderbuffers of Mesa llvmpipe stop at 16384.
@@ -51,14 +51,11 @@ class ColourThreshold:
     val_min: int
 
     def __post_init__(self) -> None:
+        # No field defaults (every colour names its box), so the rules are checked here.
         for name in ("hue_low", "hue_high"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or not 0 <= v <= 179:
-                raise ValueError(f"{name} must be an integer in [0, 179] (OpenCV hue), got {v!r}")
+            check_integer(name, getattr(self, name), 0, 179)
         for name in ("sat_min", "val_min"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or not 0 <= v <= 255:
-                raise ValueError(f"{name} must be an integer in [0, 255], got {v!r}")
+            check_integer(name, getattr(self, name), 0, 255)
 
 
 # Colours in the scene (see assets/mjcf): LED on (0.1, 1, 0.1) → hue 60; LED off is dark green
@@ -82,19 +79,12 @@ class VisionNoise:
         dropout: probability that a visible target is missed in a frame.
     """
 
-    bearing_std_deg: float = 0.0
-    distance_rel_std: float = 0.0
-    dropout: float = 0.0
+    bearing_std_deg: float = number(0.0, 0.0, 90.0)
+    distance_rel_std: float = number(0.0, 0.0, 1.0)
+    dropout: float = number(0.0, 0.0, 1.0)
 
     def __post_init__(self) -> None:
-        if not (_is_real(self.bearing_std_deg) and 0.0 <= self.bearing_std_deg <= 90.0):
-            raise ValueError(
-                f"bearing_std_deg must be in [0, 90] degrees, got {self.bearing_std_deg!r}"
-            )
-        if not (_is_real(self.distance_rel_std) and 0.0 <= self.distance_rel_std <= 1.0):
-            raise ValueError(f"distance_rel_std must be in [0, 1], got {self.distance_rel_std!r}")
-        if not (_is_real(self.dropout) and 0.0 <= self.dropout <= 1.0):
-            raise ValueError(f"dropout must be a probability in [0, 1], got {self.dropout!r}")
+        validate_fields(self)
 
     @property
     def enabled(self) -> bool:
@@ -131,58 +121,32 @@ class CameraConfig:
         near_clip: m, OpenGL near plane of the views (must be inside the robot's own body).
     """
 
-    n_views: int = 4
-    view_width: int = 128
-    height: int = 192
-    elevation_min_deg: float = -45.0
-    elevation_max_deg: float = 3.0
-    max_range: float = DEFAULT_MAX_DISTANCE
+    n_views: int = integer(4, 3, 16)
+    view_width: int = integer(128, 4, MAX_IMAGE_SIDE)
+    height: int = integer(192, 4, MAX_IMAGE_SIDE)
+    elevation_min_deg: float = number(-45.0, -80.0, 0.0, high_open=True)
+    elevation_max_deg: float = number(3.0, 0.0, 60.0)
+    max_range: float = number(DEFAULT_MAX_DISTANCE, 0.0, 100.0, low_open=True)
     min_blob_area: tuple[int, int, int] = (1, 3, 3)
     led: ColourThreshold = GREEN_LED
     face: ColourThreshold = RED_FACE
     battery: ColourThreshold = BLUE_BATTERY
     noise: VisionNoise = field(default_factory=VisionNoise)
-    near_clip: float = 0.01
+    near_clip: float = number(0.01, 0.001, 0.05)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.n_views, int) or not 3 <= self.n_views <= 16:
-            raise ValueError(f"n_views must be an integer in [3, 16], got {self.n_views!r}")
-        for name, lo in (("view_width", 4), ("height", 4)):
-            v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= MAX_IMAGE_SIDE:
-                raise ValueError(
-                    f"{name} must be an integer number of pixels in [{lo}, {MAX_IMAGE_SIDE}], "
-                    f"got {v!r}"
-                )
-        if self.n_views * self.view_width > MAX_IMAGE_SIDE:
-            raise ValueError(
-                f"n_views * view_width (the omni strip's width) must be at most "
-                f"{MAX_IMAGE_SIDE} pixels, got {self.n_views * self.view_width}"
-            )
-        if not (_is_real(self.elevation_min_deg) and -80.0 <= self.elevation_min_deg < 0.0):
-            raise ValueError(
-                f"elevation_min_deg must be in [-80, 0) degrees, got {self.elevation_min_deg!r}"
-            )
-        if not (_is_real(self.elevation_max_deg) and 0.0 <= self.elevation_max_deg <= 60.0):
-            raise ValueError(
-                f"elevation_max_deg must be in [0, 60] degrees, got {self.elevation_max_deg!r}"
-            )
-        if not (_is_real(self.max_range) and 0.0 < self.max_range <= 100.0):
-            raise ValueError(f"max_range must be in (0, 100] m, got {self.max_range!r}")
+        validate_fields(self)
+        check_integer(
+            "n_views * view_width (the omni strip's width)", self.strip_width, 1, MAX_IMAGE_SIDE
+        )
         area = self.min_blob_area
-        if not (
-            isinstance(area, tuple)
-            and len(area) == N_CLASSES
-            and all(
-                isinstance(a, int) and not isinstance(a, bool) and 1 <= a <= 10_000 for a in area
-            )
-        ):
+        if not isinstance(area, tuple) or len(area) != N_CLASSES:
             raise ValueError(
                 "min_blob_area must be a tuple of 3 integers in [1, 10000] pixels (LED, FACE, "
                 f"BATTERY), got {area!r}"
             )
-        if not (_is_real(self.near_clip) and 0.001 <= self.near_clip <= 0.05):
-            raise ValueError(f"near_clip must be in [0.001, 0.05] m, got {self.near_clip!r}")
+        for name, a in zip(CLASS_NAMES, area, strict=True):
+            check_integer(f"min_blob_area ({name})", a, 1, 10_000)
         for name in ("led", "face", "battery"):
             if not isinstance(getattr(self, name), ColourThreshold):
                 raise ValueError(f"{name} must be a ColourThreshold")
@@ -199,6 +163,3 @@ class CameraConfig:
         """Pixel columns of one robot's 360° strip."""
         return self.n_views * self.view_width
 
-
-def _is_real(v: object) -> bool:
-    return isinstance(v, float | int) and not isinstance(v, bool) and math.isfinite(v)

@@ -8,19 +8,25 @@ and sim-to-real studies; long evolution runs use the geometric provider, which
 
 Two renderers draw the same scene: ``"batch"``
 (:class:`~cyber_rodent.vision.batch_rendering.BatchOmniRenderer`, a few OpenGL 4.5 calls per
-frame, ~5x faster under llvmpipe) and ``"mujoco"``
+frame, much faster under llvmpipe) and ``"mujoco"``
 (:class:`~cyber_rodent.vision.rendering.OmniRenderer`, MuJoCo's own renderer, one
 ``mjr_render`` per view; the reference the batch renderer is tested against, and the one that
 works on any GL backend). ``"auto"`` takes the batch renderer under EGL (``MUJOCO_GL=egl``, the
 default) and MuJoCo's elsewhere (e.g. OSMesa, whose GL version may be too old).
+
+A different choice, ``backend`` (``"numba"`` or ``"numpy"``, ``docs/design.md`` §3), picks the
+compiled kernels or their numpy references for both the batch renderer's per-frame views and
+the segmentation; the images and detections are the same either way.
 """
 
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 
+from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
 from cyber_rodent.vision.config import CameraConfig
 from cyber_rodent.vision.detections import apply_noise, frame_from_detections
 from cyber_rodent.vision.rendering import OmniRenderer
@@ -41,6 +47,8 @@ class RenderedVision:
         config: the camera.
         rng: generator for the noise model; required only if ``config.noise`` is enabled.
         renderer: ``"auto"``, ``"batch"`` or ``"mujoco"`` (see the module docstring).
+        backend: ``"numba"`` (compiled kernels) or ``"numpy"`` (their references), passed to
+            the batch renderer and the segmenter.
 
     Attributes:
         last_strips: (n_robots, height, strip_width, 3) RGB of the latest :meth:`observe`
@@ -55,7 +63,9 @@ class RenderedVision:
         config: CameraConfig | None = None,
         rng: np.random.Generator | None = None,
         renderer: str = "auto",
+        backend: Backend = DEFAULT_BACKEND,
     ):
+        self.backend = check_backend(backend)
         if renderer not in RENDERERS:
             raise ValueError(f"renderer must be one of {', '.join(RENDERERS)}, got {renderer!r}")
         if renderer == "auto":
@@ -69,10 +79,12 @@ class RenderedVision:
         if renderer == "batch":
             from cyber_rodent.vision.batch_rendering import BatchOmniRenderer
 
-            self.renderer: OmniRenderer | BatchOmniRenderer = BatchOmniRenderer(world, self.config)
+            self.renderer: OmniRenderer | BatchOmniRenderer = BatchOmniRenderer(
+                world, self.config, backend=self.backend
+            )
         else:
             self.renderer = OmniRenderer(world, self.config)
-        self.segmenter = OmniSegmenter(self.config, target_geometry(world))
+        self.segmenter = OmniSegmenter(self.config, target_geometry(world), backend=self.backend)
         self.projection = self.renderer.projection
         self.last_strips: np.ndarray | None = None
         self.last_classes: np.ndarray | None = None
@@ -107,5 +119,18 @@ class RenderedVision:
     def __enter__(self) -> RenderedVision:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
+
+    def state(self) -> dict[str, Any]:
+        """The provider's mutable state for a checkpoint: the noise generator's state (the
+        latest images are outputs, overwritten by the next call before anyone reads them)."""
+        return {"rng": None if self.rng is None else self.rng.bit_generator.state}
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state` (the noise generator) into this provider."""
+        saved = state.get("rng")
+        if (saved is None) != (self.rng is None):
+            raise ValueError("vision state: the noise generator does not match this provider")
+        if self.rng is not None and saved is not None:
+            self.rng.bit_generator.state = saved

@@ -4,7 +4,7 @@ One call of :meth:`OmniRenderer.render` updates the MuJoCo scene once, then rend
 ``n_robots × n_views`` pinhole views as tiles of a single off-screen framebuffer (one
 ``mjr_render`` per tile, each with its own viewport and camera) and reads all pixels back with a
 single ``mjr_readPixels``. Tiling into one buffer avoids a scene update and a pixel read-back
-per camera (docs/design.md §6: ~35 % cheaper than separate renders). Robot ``i``'s strip is rows
+per camera (``docs/design.md`` §6). Robot ``i``'s strip is rows
 ``i*height … (i+1)*height`` of the buffer, views left to right as in
 :class:`~cyber_rodent.vision.projection.OmniProjection`.
 
@@ -16,8 +16,8 @@ What each robot's camera does not see:
   geom groups);
 * shadows, reflections, skybox, fog and haze are off, and the GL context is built with a coarse
   tessellation (:data:`TESSELLATION`): under Mesa llvmpipe the per-tile cost is dominated by
-  vertex work, and MuJoCo's default 28 × 16 slices/stacks made one 4-robot frame cost ~35 ms
-  instead of ~11 ms, with no visible change of the coloured silhouettes at these resolutions.
+  vertex work, and MuJoCo's default 28 × 16 slices/stacks made a frame several times dearer,
+  with no visible change of the coloured silhouettes at these resolutions.
 
 The model's headlight follows each view (pointing along its axis), as it does in any MuJoCo
 camera render, so a target facing the camera is lit the same way in every tile.
@@ -34,6 +34,7 @@ Headless: the GL backend follows ``MUJOCO_GL`` (``egl`` by default, set by
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -45,7 +46,8 @@ from cyber_rodent.world import World
 #: Largest side of the shared off-screen buffer we ask OpenGL for (Mesa's limit is 16384).
 MAX_BUFFER_SIDE = 16384
 _HIDE_OFFSET = 1.0e4  # m, where a robot's own geoms go while its camera renders
-_FAR_CLIP = 20.0  # m, beyond the field's diagonal from anywhere in it
+#: m, the far clip distance of every omni view: beyond the field's diagonal from anywhere.
+FAR_CLIP = 20.0
 #: (numslices, numstacks, numquads) of the built-in meshes in the vision GL context.
 TESSELLATION = (16, 4, 1)
 
@@ -66,8 +68,8 @@ def strips_buffer_size(config: CameraConfig, n_robots: int) -> tuple[int, int]:
     return width, height
 
 
-def _gl_context(width: int, height: int):
-    """An off-screen GL context of the backend named by ``MUJOCO_GL``."""
+def gl_context(width: int, height: int) -> Any:
+    """An off-screen GL context (MuJoCo's ``GLContext``) of the backend named by ``MUJOCO_GL``."""
     backend = os.environ.get("MUJOCO_GL", "egl").lower()
     if backend == "egl":
         from mujoco.egl import GLContext
@@ -100,7 +102,7 @@ class OmniRenderer:
         # The off-screen buffer's size is read from the model when the context is made.
         m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), self.width)
         m.vis.global_.offheight = max(int(m.vis.global_.offheight), self.buffer_height)
-        self._gl = _gl_context(self.width, self.buffer_height)
+        self._gl = gl_context(self.width, self.buffer_height)
         self._gl.make_current()
         # The built-in meshes are tessellated when the context is made; coarsen them for this
         # context only and restore the model's setting for other renderers (videos).
@@ -140,7 +142,7 @@ class OmniRenderer:
         near = config.near_clip
         self._frustum = (
             near,
-            _FAR_CLIP,
+            FAR_CLIP,
             self.projection.half_tan * near,
             self.projection.v_bottom * near,
             self.projection.v_top * near,
@@ -218,5 +220,5 @@ class OmniRenderer:
     def __enter__(self) -> OmniRenderer:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()

@@ -8,7 +8,8 @@ What the real CR's vision does, on the simulated image:
    blob cut by the strip's left/right edge is joined back into one.
 3. Battery packs only: the grey electrode ring cuts a pack's blue into an upper and a lower band.
    Components that overlap in bearing, have similar widths and are separated vertically by less
-   than the taller one's height are grouped into one target (see :func:`_group_stacked`).
+   than the taller one's height are grouped into one target (see
+   :func:`~cyber_rodent.vision.segmentation_kernels.join_stacked`).
 4. Per blob: **pixel area**; **bearing** = circular mean of its pixels' column bearings;
    **distance** from image geometry with the camera height, as a real omni camera allows: the
    blob's bottom edge is the target's near bottom rim (known height, e.g. the floor for a pack),
@@ -19,22 +20,23 @@ What the real CR's vision does, on the simulated image:
    by the frame or hidden behind something (its estimate is farther than the top edge's by more
    than the pixel quantisation allows), the top edge alone is used.
 
-Two backends compute steps 1–2 and the pixel statistics of step 4: ``"opencv"`` (cvtColor,
-inRange, connectedComponents, numpy; the reference) and ``"compiled"``
-(:mod:`cyber_rodent.vision.segmentation_kernel`: an OpenCV-built colour look-up table and one
-compiled labelling pass, ~10× faster and tested to give the same detections). ``"auto"`` picks
-the compiled one where numba is installed. Steps 3–4's grouping and distances are shared.
+The segmenter's ``backend`` chooses how steps 1–3 and the pixel statistics of step 4 run:
+``"numpy"`` (cvtColor, inRange, connectedComponents, numpy; the reference) or ``"numba"``
+(:mod:`cyber_rodent.vision.segmentation_kernels`: an OpenCV-built colour look-up table and one
+compiled labelling pass, tested to give the same detections, bit for bit). Step 4's distances
+are shared.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple, cast
 
 import cv2
 import numpy as np
 
-from cyber_rodent.compiled import jit
-from cyber_rodent.vision import segmentation_kernel
+from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
+from cyber_rodent.vision import segmentation_kernels as kernels
 from cyber_rodent.vision.config import CameraConfig, ColourThreshold
 from cyber_rodent.vision.projection import OmniProjection
 from cyber_rodent.vision.targets import TargetGeometry
@@ -44,13 +46,9 @@ from cyber_rodent.vision.types import BATTERY, N_CLASSES
 #: distance estimates may disagree by the effect of this many pixels on each before the bottom
 #: one is dropped.
 _EDGE_TOLERANCE_PX = 1.5
-_TWO_PI = 2.0 * math.pi
-
-#: Segmentation backends (see the module docstring).
-BACKENDS = ("auto", "compiled", "opencv")
 
 
-def _hsv_bounds(t: ColourThreshold) -> list[tuple[np.ndarray, np.ndarray]]:
+def _hsv_bounds(t: ColourThreshold) -> kernels.HsvBounds:
     """inRange bounds for a threshold; two intervals when the hue range wraps around 180."""
     if t.hue_low <= t.hue_high:
         hues = [(t.hue_low, t.hue_high)]
@@ -71,28 +69,33 @@ class OmniSegmenter:
     Args:
         config: the camera (thresholds, resolution, field of view, minimum blob area).
         geometry: camera height and target shapes (from :func:`target_geometry`).
-        backend: ``"auto"`` (compiled where numba is installed), ``"compiled"`` or
-            ``"opencv"`` (the reference); see the module docstring.
+        backend: ``"numba"`` (the compiled labelling) or ``"numpy"`` (OpenCV and numpy, the
+            reference); see the module docstring.
+
+    Attributes:
+        labeller: the compiled labelling's buffers (``backend="numba"``; made by the first
+            :meth:`detect`, remade when the strips' shape changes).
 
     Raises:
-        ValueError: for an unknown backend, or ``"compiled"`` without numba.
+        ValueError: for an unknown backend.
     """
 
-    def __init__(self, config: CameraConfig, geometry: TargetGeometry, backend: str = "auto"):
-        if backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {backend!r}")
-        if backend == "compiled" and not segmentation_kernel.AVAILABLE:
-            raise ValueError("backend 'compiled' needs numba, which is not installed")
+    def __init__(
+        self, config: CameraConfig, geometry: TargetGeometry, backend: Backend = DEFAULT_BACKEND
+    ):
+        self.backend = check_backend(backend)
         self.config = config
         self.geometry = geometry
         self.projection = OmniProjection(config)
         self._bounds = [_hsv_bounds(t) for t in config.thresholds]
         self._cos_col = np.cos(self.projection.column_bearing)
         self._sin_col = np.sin(self.projection.column_bearing)
-        compiled = backend != "opencv" and segmentation_kernel.AVAILABLE
-        self.backend = "compiled" if compiled else "opencv"
-        self._lut = segmentation_kernel.class_lut(self._bounds) if compiled else None
-        self._labeller: segmentation_kernel.Labeller | None = None
+        self._join_stacked = pick(
+            self.backend, kernels.join_stacked, kernels.join_stacked_reference
+        )
+        self._detect = pick(self.backend, self._detect_labelled, self._detect_opencv)
+        self._table = kernels.class_lut(self._bounds) if self.backend == "numba" else None
+        self.labeller: Labeller | None = None
 
     # ------------------------------------------------------------------------------------
     def masks(self, rgb: np.ndarray) -> np.ndarray:
@@ -125,11 +128,13 @@ class OmniSegmenter:
             (n_robots, height, strip_width) uint8 whose bit ``c`` marks class ``c``'s pixels
             (:meth:`masks_from_classes` expands it; it may be overwritten by the next call).
         """
-        if self.backend == "compiled":
-            return self._detect_compiled(strips)
+        return self._detect(strips)
+
+    def _detect_opencv(self, strips: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`detect` with OpenCV's masks and connected components (the reference)."""
         n, h, w, _ = strips.shape
         masks = self.masks(strips.reshape(n * h, w, 3)).reshape(N_CLASSES, n, h, w)
-        out: list[list] = [[], [], [], [], []]
+        out: list[list[np.ndarray]] = [[], [], [], [], []]
         for i in range(n):
             for c in range(N_CLASSES):
                 mask = masks[c, i]
@@ -153,25 +158,27 @@ class OmniSegmenter:
         """(3, …) uint8 0/255 masks, class order LED, FACE, BATTERY, from a class-bit image."""
         return np.stack([((classes >> c) & 1) * np.uint8(255) for c in range(N_CLASSES)])
 
-    def _detect_compiled(self, strips: np.ndarray) -> tuple[np.ndarray, ...]:
-        """:meth:`detect` with the compiled labelling (segmentation_kernel)."""
+    def _detect_labelled(self, strips: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`detect` with the compiled labelling (:mod:`.segmentation_kernels`)."""
         n, h, w, _ = strips.shape
         rgb = np.ascontiguousarray(strips.reshape(n * h, w, 3))
-        lab = self._labeller
-        if lab is None or lab.bits.shape != (n * h, w):
-            lab = self._labeller = segmentation_kernel.Labeller(
-                n * h, w, h, N_CLASSES, self.projection.column_bearing
+        lab = self.labeller
+        if lab is None or lab.strip.bits.shape != (n * h, w):
+            assert self._table is not None
+            lab = self.labeller = Labeller(
+                n * h, w, h, N_CLASSES, self.projection.column_bearing, self._table
             )
-        blobs = lab.label(rgb, self._lut)
-        robot, cls = blobs["robot"], blobs["cls"]
-        area, sin_sum, cos_sum = blobs["area"], blobs["sin_sum"], blobs["cos_sum"]
-        top, bottom = blobs["top"], blobs["bottom"]
+        blobs = lab.label(rgb)
+        robot, cls = blobs.robot, blobs.cls
+        area, sin_sum, cos_sum = blobs.area, blobs.sin_sum, blobs.cos_sum
+        top, bottom = blobs.top, blobs.bottom
         bearing = np.arctan2(sin_sum, cos_sum)
         order = np.lexsort((np.arange(len(robot)), cls, robot))
         battery = cls == BATTERY
         counts = np.bincount(robot[battery], minlength=n)
-        extents = lab.extents(blobs["n_runs"], bearing, BATTERY) if (counts > 1).any() else None
-        out: list[list] = [[], [], [], [], [], [], []]  # robot, cls, area, sin, cos, top, bottom
+        extents = lab.extents(bearing, BATTERY) if (counts > 1).any() else None
+        # Per (robot, class): robot, cls, area, sin, cos, top, bottom.
+        out: list[list[Any]] = [[], [], [], [], [], [], []]
         start = 0
         while start < len(order):
             i, c = robot[order[start]], cls[order[start]]
@@ -181,7 +188,9 @@ class OmniSegmenter:
             idx = order[start:stop]
             a, s, co, t, b = area[idx], sin_sum[idx], cos_sum[idx], top[idx], bottom[idx]
             if c == BATTERY and len(idx) > 1 and extents is not None:
-                merged = _group_stacked(bearing[idx], extents[0][idx], extents[1][idx], t, b)
+                merged = self._group_stacked(
+                    bearing[idx], extents[0][idx], extents[1][idx], t, b
+                )
                 if merged is not None:
                     a, s, co, t, b = _merge_groups(merged, a, s, co, t, b, h)
             out[0].append(np.full(len(a), i))
@@ -190,7 +199,7 @@ class OmniSegmenter:
                 out[2 + j].append(v)
             start = stop
         if not out[0]:
-            return _flat_detections([[]], lab.bits.reshape(n, h, w))
+            return _flat_detections([[]], lab.strip.bits.reshape(n, h, w))
         robot, cls, area, sin_sum, cos_sum, top, bottom = (np.concatenate(v) for v in out)
         bearing = np.arctan2(sin_sum, cos_sum)
         distance = np.empty(len(robot))
@@ -203,7 +212,7 @@ class OmniSegmenter:
         min_area = np.asarray(self.config.min_blob_area, dtype=float)[cls]
         keep = (area >= min_area) & (distance <= self.config.max_range)
         out = [[robot[keep]], [cls[keep]], [bearing[keep]], [distance[keep]], [area[keep]]]
-        return _flat_detections(out, lab.bits.reshape(n, h, w))
+        return _flat_detections(out, lab.strip.bits.reshape(n, h, w))
 
     # ------------------------------------------------------------------------------------
     def measure_blobs(self, mask: np.ndarray, cls: int) -> tuple[np.ndarray, ...]:
@@ -239,7 +248,7 @@ class OmniSegmenter:
         bearing = np.arctan2(sin_sum, cos_sum)
         if cls == BATTERY and n_groups > 1:
             lo, hi = self._angular_extent(group, cols, bearing)
-            merged = _group_stacked(bearing, lo, hi, top, bottom)
+            merged = self._group_stacked(bearing, lo, hi, top, bottom)
             if merged is not None:
                 area, sin_sum, cos_sum, top, bottom = _merge_groups(
                     merged, area, sin_sum, cos_sum, top, bottom, mask.shape[0]
@@ -267,10 +276,11 @@ class OmniSegmenter:
         hc = self.geometry.camera_height
         _, offset = proj.view_coordinates(bearing)
         u = np.tan(offset)
-        v_top = proj.v_at_row(top_edge)
-        v_bot = proj.v_at_row(bottom_edge)
-        d_top = proj.horizontal_distance(hc - shape.z_top, v_top, u) - shape.rim_offset
-        d_bot = proj.horizontal_distance(hc - shape.z_bottom, v_bot, u) + shape.rim_offset
+        v_top = cast(np.ndarray, proj.v_at_row(top_edge))
+        v_bot = cast(np.ndarray, proj.v_at_row(bottom_edge))
+        height_top, height_bottom = np.asarray(hc - shape.z_top), np.asarray(hc - shape.z_bottom)
+        d_top = proj.horizontal_distance(height_top, v_top, u) - shape.rim_offset
+        d_bot = proj.horizontal_distance(height_bottom, v_bot, u) + shape.rim_offset
         pixel = 1.0 / proj.px_per_v
         with np.errstate(divide="ignore", invalid="ignore"):
             tolerance = _EDGE_TOLERANCE_PX * pixel * (1.0 / np.abs(v_top) + 1.0 / np.abs(v_bot))
@@ -295,8 +305,40 @@ class OmniSegmenter:
         np.maximum.at(hi, group, -dev)
         return -(lo + half_px), hi + half_px
 
+    def _group_stacked(
+        self,
+        bearing: np.ndarray,
+        lo: np.ndarray,
+        hi: np.ndarray,
+        top: np.ndarray,
+        bottom: np.ndarray,
+    ) -> np.ndarray | None:
+        """Group blobs stacked vertically at the same bearing (a pack cut by its electrode ring).
 
-def _flat_detections(out: list[list], classes: np.ndarray) -> tuple[np.ndarray, ...]:
+        The two bands of one pack have the same angular width (same cylinder, same distance)
+        and the ring between them is shorter than the taller band; the pair test is
+        :func:`~cyber_rodent.vision.segmentation_kernels.join_stacked`. A farther pack seen
+        *above* a nearer one without touching it must be more than 2.4 times as far (its bottom
+        rim, 17 cm below the camera, has to appear above the near pack's top, 7 cm below),
+        hence at most 41 % as wide: it stays separate.
+
+        Args:
+            bearing: (k,) mean bearings; lo, hi: bearing interval relative to the mean (rad);
+            top, bottom: first and last image row of each blob.
+
+        Returns:
+            The group label of each blob, or None if nothing is grouped.
+        """
+        parent = np.arange(len(bearing))
+        joined = self._join_stacked(
+            np.asarray(bearing, dtype=np.float64), np.asarray(lo, dtype=np.float64),
+            np.asarray(hi, dtype=np.float64), np.asarray(top, dtype=np.int64),
+            np.asarray(bottom, dtype=np.int64), parent,
+        )  # fmt: skip
+        return _roots(parent) if joined else None
+
+
+def _flat_detections(out: list[list[Any]], classes: np.ndarray) -> tuple[np.ndarray, ...]:
     """``detect``'s return value from per-(robot, class) lists of robot, cls, bearing,
     distance and area arrays."""
     if not out[0]:
@@ -322,7 +364,8 @@ def _merge_groups(
     bottom: np.ndarray,
     height: int,
 ) -> tuple[np.ndarray, ...]:
-    """Pool the statistics of blobs with the same group label (from :func:`_group_stacked`)."""
+    """Pool the statistics of blobs with the same group label (from
+    :meth:`OmniSegmenter._group_stacked`)."""
     m_groups, m_of = np.unique(merged, return_inverse=True)
     k = len(m_groups)
     area = np.bincount(m_of, weights=area, minlength=k)
@@ -355,41 +398,6 @@ def _union(parent: np.ndarray, a: int, b: int) -> None:
         parent[max(ra, rb)] = min(ra, rb)
 
 
-@jit
-def _join_stacked(
-    bearing: np.ndarray,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    top: np.ndarray,
-    bottom: np.ndarray,
-    parent: np.ndarray,
-) -> bool:
-    """:func:`_group_stacked`'s pair test (compiled: it is O(k²) in the blobs); unions the
-    pairs in ``parent`` and says whether any pair was joined."""
-    k = bearing.shape[0]
-    joined = False
-    for a in range(k):
-        for b in range(a + 1, k):
-            d = bearing[b] - bearing[a]
-            shift = d - _TWO_PI * np.rint(d / _TWO_PI)  # wrapped to [-π, π]
-            overlap = min(hi[a], shift + hi[b]) - max(lo[a], shift + lo[b])
-            wa, wb = hi[a] - lo[a], hi[b] - lo[b]
-            narrow, wide = min(wa, wb), max(wa, wb)
-            if overlap < 0.7 * narrow or narrow < 0.45 * wide:
-                continue
-            gap = max(top[a], top[b]) - min(bottom[a], bottom[b]) - 1
-            if gap < max(bottom[a] - top[a] + 1, bottom[b] - top[b] + 1):
-                ra, rb = a, b
-                while parent[ra] != ra:
-                    ra = parent[ra]
-                while parent[rb] != rb:
-                    rb = parent[rb]
-                if ra != rb:
-                    parent[max(ra, rb)] = min(ra, rb)
-                joined = True
-    return joined
-
-
 def _join_wrapped(labels: np.ndarray, parent: np.ndarray) -> None:
     """Join components that touch across the strip's left/right seam (8-connectivity)."""
     left, right = labels[:, 0], labels[:, -1]
@@ -403,31 +411,111 @@ def _join_wrapped(labels: np.ndarray, parent: np.ndarray) -> None:
             _union(parent, la, lb)
 
 
-def _group_stacked(
-    bearing: np.ndarray, lo: np.ndarray, hi: np.ndarray, top: np.ndarray, bottom: np.ndarray
-) -> np.ndarray | None:
-    """Group blobs stacked vertically at the same bearing (a pack cut by its electrode ring).
+class Blobs(NamedTuple):
+    """Per component of a :meth:`Labeller.label` call (ordered by robot, then in each robot by
+    first pixel in raster order)."""
 
-    The two bands of one pack have the same angular width (same cylinder, same distance) and
-    the ring between them is shorter than the taller band, so two blobs are grouped when their
-    bearing intervals overlap by at least 70 % of the narrower one's width, the narrower is at
-    least 45 % as wide as the wider (less only if part of a band is hidden), and the vertical
-    gap between them is smaller than the taller one's height. A farther pack seen *above* a
-    nearer one without touching it must be more than 2.4 times as far (its bottom rim, 17 cm
-    below the camera, has to appear above the near pack's top, 7 cm below), hence at most 41 %
-    as wide: it stays separate.
+    robot: np.ndarray  #: (k,) int64
+    cls: np.ndarray  #: (k,) int64 colour class
+    top: np.ndarray  #: (k,) int64 first row in the strip
+    bottom: np.ndarray  #: (k,) int64 last row in the strip
+    area: np.ndarray  #: (k,) pixels
+    sin_sum: np.ndarray  #: (k,) sum over its pixels of the column bearing's sine
+    cos_sum: np.ndarray  #: (k,) and of its cosine
+
+
+class Labeller:
+    """The compiled labelling's buffers for strips of one shape, and its bound kernels.
+
+    The run buffers start small and grow to the worst case (a checkerboard) the first time a
+    frame overflows them.
 
     Args:
-        bearing: (k,) mean bearings; lo, hi: bearing interval relative to the mean (rad);
-        top, bottom: first and last image row of each blob.
-
-    Returns:
-        The group label of each blob, or None if nothing is grouped.
+        rows, width: the stacked strips' shape (all robots' rows, strip width).
+        height: rows per robot strip.
+        n_classes: colour classes (bits of the look-up table).
+        column_bearing: (width,) rad, each column's bearing.
+        table: the classes' look-up table (:func:`~.segmentation_kernels.class_lut`).
     """
-    parent = np.arange(len(bearing))
-    joined = _join_stacked(
-        np.asarray(bearing, dtype=np.float64), np.asarray(lo, dtype=np.float64),
-        np.asarray(hi, dtype=np.float64), np.asarray(top, dtype=np.int64),
-        np.asarray(bottom, dtype=np.int64), parent,
-    )  # fmt: skip
-    return _roots(parent) if joined else None
+
+    def __init__(
+        self,
+        rows: int,
+        width: int,
+        height: int,
+        n_classes: int,
+        column_bearing: np.ndarray,
+        table: kernels.ClassTable,
+    ):
+        self.table = table
+        bearing = np.ascontiguousarray(column_bearing, dtype=np.float64)
+        self.strip = kernels.StripBuffers(
+            height=height,
+            n_classes=n_classes,
+            column_bearing=bearing,
+            sin_col=np.sin(bearing),
+            cos_col=np.cos(bearing),
+            half_px=0.5 * (2.0 * math.pi / width),
+            bits=np.zeros((rows, width), dtype=np.uint8),
+            edge_left=np.empty((rows, n_classes), dtype=np.int64),
+            edge_right=np.empty((rows, n_classes), dtype=np.int64),
+        )
+        self.worst = rows * n_classes * ((width + 1) // 2)
+        self._allocate(min(self.worst, rows * n_classes * 8))
+
+    def _allocate(self, capacity: int) -> None:
+        self.capacity = capacity
+        self.runs = kernels.Runs(
+            row=np.empty(capacity, dtype=np.int64),
+            c0=np.empty(capacity, dtype=np.int64),
+            c1=np.empty(capacity, dtype=np.int64),
+            cls=np.empty(capacity, dtype=np.int64),
+            parent=np.empty(capacity, dtype=np.int64),
+            comp=np.empty(capacity, dtype=np.int64),
+            comp_stats=np.empty((capacity, 3), dtype=np.float64),
+            comp_ints=np.empty((capacity, 4), dtype=np.int64),
+        )
+        self.extent_buffers = kernels.Extents(
+            counts=np.zeros(3, dtype=np.int64),
+            bearing=np.empty(capacity, dtype=np.float64),
+            lo=np.empty(capacity, dtype=np.float64),
+            hi=np.empty(capacity, dtype=np.float64),
+        )
+        self._extents = bind(kernels.extents, self.runs, self.strip, self.extent_buffers)
+
+    def label(self, rgb: np.ndarray) -> Blobs:
+        """Connected class blobs of stacked omni strips, with their pixel statistics.
+
+        Args:
+            rgb: (rows, width, 3) uint8 C-contiguous RGB, every robot's strip stacked.
+        """
+        # The image is an argument, not a bound buffer: MuJoCo's renderer returns a new array
+        # every frame, and rebinding costs more than numba's dispatch on these named buffers.
+        while True:
+            n, k = kernels.label(rgb, self.table, self.strip, self.runs)
+            if n >= 0:
+                break
+            self._allocate(self.worst)
+        self.extent_buffers.counts[0] = n
+        ints, stats = self.runs.comp_ints[:k], self.runs.comp_stats[:k]
+        return Blobs(
+            robot=ints[:, 0].copy(),
+            cls=ints[:, 1].copy(),
+            top=ints[:, 2].copy(),
+            bottom=ints[:, 3].copy(),
+            area=stats[:, 0].copy(),
+            sin_sum=stats[:, 1].copy(),
+            cos_sum=stats[:, 2].copy(),
+        )
+
+    def extents(self, bearing: np.ndarray, cls: int) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) bearing interval of every component of class ``cls`` of the last
+        :meth:`label` call, given every component's mean ``bearing`` (other components: half a
+        pixel either side). The arrays are overwritten by the next call."""
+        k = len(bearing)
+        ext = self.extent_buffers
+        ext.counts[1] = k
+        ext.counts[2] = cls
+        ext.bearing[:k] = bearing
+        self._extents()
+        return ext.lo[:k], ext.hi[:k]

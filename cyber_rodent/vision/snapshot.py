@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from cyber_rodent.atomic import atomic_output
 from cyber_rodent.vision.config import CameraConfig
 from cyber_rodent.vision.rendered import RenderedVision
 from cyber_rodent.vision.types import CLASS_NAMES, VisionFrame
@@ -49,13 +50,17 @@ def save_omni_png(
     robot = int(robot)
     with RenderedVision(world, config) as vision:
         frame = vision.observe()
-        strip = vision.last_strips[robot].copy()
-        masks = vision.last_masks[:, robot].copy()
+        strips, all_masks = vision.last_strips, vision.last_masks
+        if strips is None or all_masks is None:
+            raise RuntimeError("the rendered provider kept no image of its observation")
+        strip = strips[robot].copy()
+        masks = all_masks[:, robot].copy()
         image = compose_omni_panels(strip, masks, frame, robot, vision)
     out = Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(out), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):
-        raise OSError(f"could not write {out}")
+    with atomic_output(out) as temp:
+        if not cv2.imwrite(str(temp), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):
+            raise OSError(f"could not write {out}")
     return out
 
 

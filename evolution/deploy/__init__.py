@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from cyber_rodent.atomic import write_text
 from evolution.genome import RECHARGE, SELECTION, Genome
 
 #: Bundle layout version (``bundle.json`` ``format``); the reference step checks it.
@@ -161,9 +162,7 @@ def write_bundle(
         },
         "provenance": provenance or {},
     }
-    tmp = root / f".{BUNDLE_FILE}.tmp"
-    tmp.write_text(json.dumps(spec, indent=2, sort_keys=True, default=repr) + "\n")
-    os.replace(tmp, root / BUNDLE_FILE)
+    write_text(root / BUNDLE_FILE, json.dumps(spec, indent=2, sort_keys=True, default=repr) + "\n")
     return root
 
 
@@ -178,32 +177,34 @@ def record_decisions(runner: Any, steps: int) -> dict[str, np.ndarray]:
         ``behaviour``, ``led`` (shown), ``led_selection``, ``command``, ``continue_recharge``
         and ``inputs`` (12).
     """
-    survival, perception, controller = runner.survival, runner.perception, runner.controller
+    survival, perception, action = runner.survival, runner.perception, runner.action
     keys = ("ranges", "bearing", "distance", "visible", "energy", "led_previous", "docked",
             "recharge_steps", "weights", "behaviour", "led", "led_selection", "command",
             "continue_recharge", "inputs")  # fmt: skip
     rows: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     for _ in range(steps):
+        controller = runner.controller
         before = {
             "energy": survival.energy.copy(),
             "led_previous": runner.world.led_on.copy(),
             "docked": survival.docked.copy(),
             "recharge_steps": survival.recharge_steps.copy(),
-            "weights": np.array(runner._weights),
+            "weights": controller.buffers.weights.copy(),
         }
         runner.step()
         for k, v in before.items():
             rows[k].append(v)
-        rows["ranges"].append(perception.ranges.copy())
-        rows["bearing"].append(perception.bearing.copy())
-        rows["distance"].append(perception.distance.copy())
-        rows["visible"].append(perception.visible.copy())
+        nearest = perception.nearest
+        rows["ranges"].append(perception.sensors.ranges.copy())
+        rows["bearing"].append(nearest.bearing.copy())
+        rows["distance"].append(nearest.distance.copy())
+        rows["visible"].append(nearest.visible.copy())
         rows["behaviour"].append(controller.behaviour.copy())
         rows["led_selection"].append(controller.led.copy())
-        rows["led"].append(runner._led.copy())
-        rows["command"].append(runner._commands.copy())
-        rows["continue_recharge"].append(controller._continue.copy())
-        rows["inputs"].append(controller.inputs.copy())
+        rows["led"].append(action.led.copy())
+        rows["command"].append(action.commands.copy())
+        rows["continue_recharge"].append(controller.continue_recharge.copy())
+        rows["inputs"].append(controller.buffers.inputs.copy())
     return {k: np.stack(v) for k, v in rows.items()}
 
 

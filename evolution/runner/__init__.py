@@ -6,18 +6,17 @@ the paper's statistics and an event log, and writes atomic, bit-identically resu
 checkpoints. :func:`evolution.api.run` wraps it in one call.
 """
 
-from evolution.runner.config import METHODS, RunConfig
-from evolution.runner.events import EventKind, EventLog
-from evolution.runner.loop import (
-    EvolutionRunner,
+from evolution.runner.checkpoints import (
     checkpoint_kind,
-    default_policies,
     latest_checkpoint,
     list_checkpoints,
     policy_identity,
     run_fingerprint,
 )
+from evolution.runner.config import METHODS, RunConfig
+from evolution.runner.events import EventKind, EventLog
 from evolution.runner.perception import Perception
+from evolution.runner.step import EvolutionRunner, default_policies
 
 __all__ = [
     "METHODS",

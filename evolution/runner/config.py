@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import Any
 
 from cyber_rodent.profiles import HardwareProfile
 from cyber_rodent.survival import SurvivalConfig
+from cyber_rodent.validation import choice, validate_fields
 from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig
 from cyber_rodent.world import WorldConfig
 from evolution.config import EvolutionConfig
@@ -27,6 +29,10 @@ METHODS = ("ee", "ce")
 #: Fields that EvolutionConfig and SurvivalConfig share; they must be equal in a run.
 SHARED_ENERGY_FIELDS = ("initial_energy", "max_energy", "max_recharge_steps")
 
+#: Default of the fields that follow ``evolution`` (``survival``, ``world``): "not given", so
+#: ``__post_init__`` derives them. After construction they always hold a config.
+_FROM_EVOLUTION: Any = None
+
 
 @dataclass(frozen=True)
 class RunConfig:
@@ -36,9 +42,9 @@ class RunConfig:
         method: ``"ee"`` (embodied evolution, paper §2) or ``"ce"`` (centralised GA, §4.1).
         evolution: the paper's evolution numbers (Tables 1 and 2).
         survival: the world's energy, docking, recharge and mating rules; derived from
-            ``evolution`` if None (the paper's defaults for everything else).
+            ``evolution`` if not given (the paper's defaults for everything else).
         world: the field (robots, packs, physics timestep); ``n_robots`` from ``evolution``
-            and 5 packs if None (the paper's simulation).
+            and 5 packs if not given (the paper's simulation).
         camera: the omnidirectional camera (default :class:`CameraConfig`).
         vision: the vision provider, ``"geometric"`` (fast, the default for evolution runs) or
             ``"rendered"`` (the real off-screen camera; much slower).
@@ -53,26 +59,22 @@ class RunConfig:
             sub-configs that disagree (energy numbers, robot count).
     """
 
-    method: str = "ee"
+    method: str = choice("ee", METHODS)
     evolution: EvolutionConfig = field(default_factory=EvolutionConfig)
-    survival: SurvivalConfig | None = None
-    world: WorldConfig | None = None
-    camera: CameraConfig | None = None
-    vision: str = "geometric"
+    survival: SurvivalConfig = _FROM_EVOLUTION
+    world: WorldConfig = _FROM_EVOLUTION
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    vision: str = choice("geometric", PROVIDER_NAMES)
     profile: HardwareProfile | None = None
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        validate_fields(self)
         if not isinstance(self.evolution, EvolutionConfig):
             raise ValueError(f"evolution must be an EvolutionConfig, got {type(self.evolution)!r}")
         evo = self.evolution
-        if self.survival is None:
-            object.__setattr__(
-                self,
-                "survival",
-                SurvivalConfig(**{name: getattr(evo, name) for name in SHARED_ENERGY_FIELDS}),
-            )
+        if self.survival is _FROM_EVOLUTION:
+            shared = {name: getattr(evo, name) for name in SHARED_ENERGY_FIELDS}
+            object.__setattr__(self, "survival", SurvivalConfig(**shared))
         elif not isinstance(self.survival, SurvivalConfig):
             raise ValueError(f"survival must be a SurvivalConfig, got {type(self.survival)!r}")
         for name in SHARED_ENERGY_FIELDS:
@@ -82,7 +84,7 @@ class RunConfig:
                     f"survival.{name} ({b!r}) must equal evolution.{name} ({a!r}): the world "
                     "applies the energy rules the evolution assumes"
                 )
-        if self.world is None:
+        if self.world is _FROM_EVOLUTION:
             object.__setattr__(self, "world", WorldConfig(n_robots=evo.n_robots))
         elif not isinstance(self.world, WorldConfig):
             raise ValueError(f"world must be a WorldConfig, got {type(self.world)!r}")
@@ -91,14 +93,8 @@ class RunConfig:
                 f"world.n_robots ({self.world.n_robots}) must equal evolution.n_robots "
                 f"({evo.n_robots}): every physical robot carries one subpopulation"
             )
-        if self.camera is None:
-            object.__setattr__(self, "camera", CameraConfig())
-        elif not isinstance(self.camera, CameraConfig):
+        if not isinstance(self.camera, CameraConfig):
             raise ValueError(f"camera must be a CameraConfig, got {type(self.camera)!r}")
-        if self.vision not in PROVIDER_NAMES:
-            raise ValueError(
-                f"vision must be one of {', '.join(PROVIDER_NAMES)}, got {self.vision!r}"
-            )
         if self.profile is not None:
             self._check_profile(self.profile)
 
@@ -123,7 +119,7 @@ class RunConfig:
                 "evolution.transfer.hardware_run_config"
             )
 
-    def replace(self, **changes: object) -> RunConfig:
+    def replace(self, **changes: Any) -> RunConfig:
         """A copy with some fields changed, kept consistent.
 
         When ``evolution`` changes and ``survival`` or ``world`` are not passed, their shared
@@ -137,4 +133,4 @@ class RunConfig:
                 changes["survival"] = dataclasses.replace(self.survival, **shared)
             if "world" not in changes:
                 changes["world"] = dataclasses.replace(self.world, n_robots=evo.n_robots)
-        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
+        return dataclasses.replace(self, **changes)

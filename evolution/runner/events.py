@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import enum
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -107,11 +107,24 @@ class EventLog:
         """Write the log as CSV (kinds as names)."""
         self.to_frame().to_csv(path, index=False)
 
-    def __getstate__(self) -> dict[str, np.ndarray]:
+    def state(self) -> dict[str, Any]:
+        """The log as plain state: its (n_events, 6) int64 rows (docs/design.md §10)."""
         return {"rows": self._rows[: self._n].copy()}
 
-    def __setstate__(self, state: dict[str, np.ndarray]) -> None:
-        rows = np.asarray(state["rows"], dtype=np.int64)
+    def load_state(self, state: dict[str, Any]) -> None:
+        """Replace the log's rows with a :meth:`state`'s.
+
+        Raises:
+            ValueError: the rows are not an (n, 6) int64 array.
+        """
+        rows = state["rows"]
+        if not (
+            isinstance(rows, np.ndarray)
+            and rows.dtype == np.int64
+            and rows.ndim == 2
+            and rows.shape[1] == len(COLUMNS)
+        ):
+            raise ValueError(f"event log rows must be an (n, {len(COLUMNS)}) int64 array")
         self._n = len(rows)
         self._rows = np.zeros((max(2 * self._n, 1024), len(COLUMNS)), dtype=np.int64)
         self._rows[: self._n] = rows

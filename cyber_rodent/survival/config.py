@@ -1,0 +1,74 @@
+"""The rules of the survival world as one validated configuration (docs/design.md §5)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from cyber_rodent import constants as C
+from cyber_rodent.validation import (
+    boolean,
+    check_integer,
+    check_number,
+    integer,
+    number,
+    validate_fields,
+)
+
+#: Upper bound of the energy fields: large enough for any experiment, small enough to be finite.
+_ENERGY_LIMIT = 1e9
+
+
+@dataclass(frozen=True)
+class SurvivalConfig:
+    """Every rule of the survival world, with the paper's defaults (Table 1, docs/design.md §5).
+
+    Attributes:
+        initial_energy: energy of a newborn agent (paper: 100).
+        max_energy: energy cap (paper: 200).
+        energy_decay: energy lost per control step when not recharging (paper: 1).
+        recharge_rate: energy gained per recharge step (paper: 5).
+        decay_while_recharging: also drain ``energy_decay`` on recharge steps (net +4 instead of
+            +5). Off by default: 40 steps x 5 = 200 = ``max_energy`` is the paper's arithmetic.
+        max_recharge_steps: consecutive recharge steps after which recharging ends (paper: 40).
+        control_dt: seconds of simulated time per control step (docs/design.md §5: 0.1 s); must be a
+            whole number of physics timesteps.
+        reflex_min_steps: shortest post-recharge rotation reflex, control steps.
+        reflex_max_steps: longest reflex; the length is drawn uniformly in [min, max]. At the
+            default spin speed a step turns 0.375 rad, so 4..8 steps turn 86°..172°.
+        reflex_wheel_speed: wheel rim speed of the reflex spin, m/s.
+        dock_bearing_tolerance_deg: a teeth/electrode contact is a capture only if the pack's
+            centre lies within this angle of the robot's heading. With 6 cm wide teeth and a
+            9 cm electrode ring, 15° admits contacts with the pack's axis up to about 4.7 cm
+            off the robot's centre line, and refuses the glancing contacts of a teeth corner
+            further out (16-29°).
+        mate_angle_deg: each IR port must face the other port within this angle (paper: about
+            ±15°; docs/design.md §5).
+        mate_distance: largest IR port-to-port distance for an exchange, m (docs/design.md
+            §5: 0.35).
+        mate_consecutive_steps: control steps the mating condition must hold (docs/design.md
+            §5: 1).
+    """
+
+    initial_energy: float = number(100.0, 0.0, _ENERGY_LIMIT, low_open=True)
+    max_energy: float = number(200.0, 0.0, _ENERGY_LIMIT, low_open=True)
+    energy_decay: float = number(1.0, 0.0, _ENERGY_LIMIT)
+    recharge_rate: float = number(5.0, 0.0, _ENERGY_LIMIT)
+    decay_while_recharging: bool = boolean(False)
+    max_recharge_steps: int = integer(40, 1, 1_000_000)
+    control_dt: float = number(0.1, 0.0, 10.0, low_open=True)
+    reflex_min_steps: int = integer(4, 0, 1000)
+    reflex_max_steps: int = integer(8, 0, 1000)
+    reflex_wheel_speed: float = number(0.3, 0.0, C.TOP_SPEED, low_open=True)
+    dock_bearing_tolerance_deg: float = number(15.0, 0.0, 90.0, low_open=True)
+    mate_angle_deg: float = number(15.0, 0.0, 90.0, low_open=True)
+    mate_distance: float = number(0.35, 0.0, C.FIELD_SIZE * math.sqrt(2), low_open=True)
+    mate_consecutive_steps: int = integer(1, 1, 1_000_000)
+
+    def __post_init__(self) -> None:
+        validate_fields(self)
+        # The cap holds a newborn's energy, and a step drains or gains at most the cap.
+        check_number("max_energy", self.max_energy, self.initial_energy, _ENERGY_LIMIT)
+        check_number("energy_decay", self.energy_decay, 0.0, self.max_energy)
+        check_number("recharge_rate", self.recharge_rate, 0.0, self.max_energy)
+        check_integer("reflex_max_steps", self.reflex_max_steps, self.reflex_min_steps, 1000)

@@ -1,0 +1,573 @@
+"""The geometric vision's per-step rules: each as a compiled kernel and its numpy reference.
+
+:class:`~cyber_rodent.vision.geometric.GeometricVision` answers, every control step and for
+every robot, "what is the nearest visible green LED, red face and blue pack?". Three rules do
+it, each written twice with the same signature (``docs/design.md`` §3):
+
+* :func:`gather` / :func:`gather_reference`: copy the cameras' and targets' poses out of
+  MuJoCo's data;
+* :func:`front` / :func:`front_reference`: every target in every camera's frame, its projected
+  size in pixels, whether it could be seen at all (range, size, own body, lit LED, plate
+  facing), and the occlusion sample rays with their field-of-view test;
+* :func:`nearest` / :func:`nearest_reference`: gather, front, then each class's candidates
+  nearest first, casting MuJoCo's ``mj_ray`` at a candidate's samples only until its visibility
+  is certain (a target is visible iff ``full_area * hits / samples >= min_area``).
+
+The compiled kernels call MuJoCo's own ``mj_ray`` through its C entry point (linked by symbol,
+so numba can cache the code); the references call the same C function through ``ctypes``, so
+both test occlusion exactly as MuJoCo does. The reference of :func:`front` is vectorised numpy;
+its small matrix products may round the last bit differently from the scalar loops, so the two
+agree to rounding (``tests/test_kernel_parity.py``).
+
+Every kernel reads and writes named buffers built once by the provider:
+:class:`MujocoPoses` (views of ``MjData``), :class:`TargetTable` and :class:`CameraModel`
+(constants), :class:`FrontBuffers` (per-step scratch) and :class:`NearestTargets` (the answer),
+bundled as one :class:`GeometricScene`.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import math
+import os
+import platform
+from typing import Any, NamedTuple
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from cyber_rodent.backend import jit
+from cyber_rodent.vision.types import BATTERY, FACE, LED
+
+Floats = npt.NDArray[np.float64]
+Ints = npt.NDArray[np.int64]
+Bools = npt.NDArray[np.bool_]
+
+_TWO_PI = 2.0 * math.pi
+#: Class order of :class:`NearestTargets` columns (LED, face, battery).
+assert (LED, FACE, BATTERY) == (0, 1, 2)
+
+#: MuJoCo versions whose ``mj_ray`` C signature the kernels' prototype was checked against (the
+#: header of 3.17.0: ``mjtNum mj_ray(const mjModel*, const mjData*, const mjtNum pnt[3],
+#: const mjtNum vec[3], const mjtByte* geomgroup, mjtBool flg_static, int bodyexclude,
+#: int geomid[1], mjtNum normal[3])``). A wrong prototype corrupts memory.
+VERIFIED_MUJOCO = ("3.17.0",)
+
+
+class MujocoPoses(NamedTuple):
+    """Views of the MuJoCo data the kernels read, and the addresses ``mj_ray`` needs."""
+
+    site_xpos: Floats  #: (nsite, 3)
+    site_xmat: Floats  #: (nsite, 9)
+    geom_xpos: Floats  #: (ngeom, 3)
+    geom_xmat: Floats  #: (ngeom, 9)
+    model_address: int  #: ``MjModel._address``
+    data_address: int  #: ``MjData._address``
+
+
+class TargetTable(NamedTuple):
+    """Constants of the targets (LED, face of every robot, every pack) and their samples.
+
+    T targets, S occlusion samples (stored target by target), n robots.
+    """
+
+    camera_site: Ints  #: (n,) site of each robot's omni camera
+    target_geom: Ints  #: (T,) geom of each target
+    own: Bools  #: (n, T) the target belongs to the robot
+    plate: Bools  #: (T,) a face plate (seen only from the front)
+    half_width: Floats  #: (T,) m
+    half_height: Floats  #: (T,) m
+    rim: Floats  #: (T,) m, cylinder radius seen from above (0 for plates)
+    half_depth: Floats  #: (T,) m, plate half thickness (0 for cylinders)
+    min_area: Floats  #: (T,) px, the class's smallest detectable blob
+    sample_target: Ints  #: (S,) target of each sample
+    sample_lateral: Floats  #: (S,) m, offset along the target's width axis
+    sample_dz: Floats  #: (S,) m, vertical offset
+    sample_geom: Ints  #: (S,) geom a ray must hit first to count
+    sample_start: Ints  #: (T,) first sample of each target
+    sample_end: Ints  #: (T,) one past its last sample
+    inv_samples: Floats  #: (T,) 1 / samples of each target
+    class_targets: Ints  #: (3, W) targets of each class, padded with T (never a candidate)
+    class_count: Ints  #: (3,) targets of each class
+    exclude_body: Ints  #: (n,) body each robot's rays ignore (its own chassis)
+    geom_groups: npt.NDArray[np.uint8]  #: (6,) rendered geom groups (the ones that hide)
+
+
+class CameraModel(NamedTuple):
+    """The omni camera's projection (``OmniProjection``) as the kernels need it."""
+
+    view_centres: Floats  #: (n_views,) rad
+    max_range: float  #: m
+    view_span: float  #: rad per view
+    n_views: int
+    px_per_u: float  #: pixels per unit of image-plane x
+    px_per_v: float  #: pixels per unit of image-plane y
+    v_top: float  #: image-plane y of the strip's top edge
+    v_bottom: float  #: and of its bottom edge
+    tan_el_min: float  #: the elevation band every bearing sees
+    tan_el_max: float
+    edge_clip: float  #: rad, keeps tan() finite for targets beside the camera
+
+
+class FrontBuffers(NamedTuple):
+    """Per-step scratch and results of :func:`front` (n robots, T targets, S samples)."""
+
+    cam: Floats  #: (n, 3) camera positions
+    rot: Floats  #: (n, 9) camera frames, row-major
+    centre: Floats  #: (T, 3) target positions
+    gmat: Floats  #: (T, 9) target frames
+    local: Floats  #: (n, T, 3) target axes in each camera's frame
+    bearing: Floats  #: (n, T) rad
+    distance: Floats  #: (n, T) m
+    width_px: Floats  #: (n, T)
+    height_px: Floats  #: (n, T)
+    half_angle: Floats  #: (n, T) rad, half the target's angular width
+    full_area: Floats  #: (n, T) px if fully visible
+    candidate: Bools  #: (n, T) could be seen at all
+    diff: Floats  #: (n, T, 3) camera-to-target vectors, world frame
+    lateral: Floats  #: (n, T, 3) each target's width axis as seen by each robot
+    rays: Floats  #: (n, S, 3) camera-to-sample vectors, world frame
+    sample_ok: Bools  #: (n, S) sample inside the field of view
+    order: Ints  #: (T,) scratch: one class's candidates, nearest first
+    ray_geom: npt.NDArray[np.int32]  #: (1,) geom hit by the last ray
+
+
+class NearestTargets(NamedTuple):
+    """Each robot's nearest visible LED, face and pack (columns in that order)."""
+
+    bearing: Floats  #: (n, 3) rad, robot frame; 0 where nothing is seen
+    distance: Floats  #: (n, 3) m; inf where nothing is seen
+    visible: Bools  #: (n, 3)
+
+
+class GeometricScene(NamedTuple):
+    """Everything :func:`nearest` reads: the poses, the constants, the LEDs, the scratch."""
+
+    poses: MujocoPoses
+    targets: TargetTable
+    camera: CameraModel
+    led_on: Bools  #: (n,) each robot's LED state (a dark LED is not a green target)
+    front: FrontBuffers
+
+
+# --- MuJoCo's ray cast, for compiled code and for the reference ------------------------------
+def mujoco_library() -> tuple[str, str]:
+    """Path of the MuJoCo shared library the bindings loaded, or ("", why it is unusable)."""
+    if mujoco.__version__ not in VERIFIED_MUJOCO:
+        return "", (
+            f"the mj_ray prototype is verified for mujoco {', '.join(VERIFIED_MUJOCO)}, "
+            f"not {mujoco.__version__}"
+        )
+    if platform.machine().lower() not in ("x86_64", "amd64", "aarch64", "arm64"):
+        return "", f"pointer-as-integer calls are not checked on {platform.machine()}"
+    here = os.path.dirname(mujoco.__file__)
+    found = sorted(glob.glob(os.path.join(here, f"libmujoco.so.{mujoco.__version__}")))
+    if not found:
+        return "", f"no libmujoco.so.{mujoco.__version__} next to {here}"
+    return found[0], ""
+
+
+_LIBRARY, UNAVAILABLE_REASON = mujoco_library()
+
+
+def _compiled_mj_ray() -> Any:
+    """``mj_ray`` as a numba external function, linked by symbol name (None if unusable).
+
+    Pointers are declared as 64-bit integers (the same registers as ``void*`` in the x86-64 and
+    AArch64 calling conventions), so the kernel passes array addresses as plain integers.
+    """
+    if not _LIBRARY:
+        return None
+    try:
+        import llvmlite.binding as llvm
+        from numba import types
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return None
+    llvm.load_library_permanently(_LIBRARY)
+    i64 = types.int64
+    signature = types.float64(i64, i64, i64, i64, i64, types.uint8, types.int32, i64, i64)
+    return types.ExternalFunction("mj_ray", signature)
+
+
+def _reference_mj_ray() -> Any:
+    """``mj_ray`` through ctypes, with the same prototype (None if unusable)."""
+    if not _LIBRARY:
+        return None
+    function = ctypes.CDLL(_LIBRARY).mj_ray
+    pointer = ctypes.c_int64
+    function.argtypes = [pointer] * 5 + [ctypes.c_uint8, ctypes.c_int32, pointer, pointer]
+    function.restype = ctypes.c_double
+    return function
+
+
+_MJ_RAY = _compiled_mj_ray()
+_MJ_RAY_REFERENCE = _reference_mj_ray()
+_ROW = 24  # bytes of one (3,) float64 point or direction
+
+
+def _wrap(a: float) -> float:
+    """Wrap an angle to [-π, π) (numpy's ``(a + π) % 2π - π``)."""
+    return (a + math.pi) % _TWO_PI - math.pi
+
+
+_wrap_compiled = jit(_wrap)
+
+
+# --- gather ------------------------------------------------------------------------------------
+@jit
+def gather(poses: MujocoPoses, targets: TargetTable, front: FrontBuffers) -> None:
+    """Copy the cameras' poses (``front.cam``, ``front.rot``) and the targets' poses
+    (``front.centre``, ``front.gmat``) out of MuJoCo's data arrays."""
+    for i in range(targets.camera_site.shape[0]):
+        s = targets.camera_site[i]
+        for k in range(3):
+            front.cam[i, k] = poses.site_xpos[s, k]
+        for k in range(9):
+            front.rot[i, k] = poses.site_xmat[s, k]
+    for t in range(targets.target_geom.shape[0]):
+        g = targets.target_geom[t]
+        for k in range(3):
+            front.centre[t, k] = poses.geom_xpos[g, k]
+        for k in range(9):
+            front.gmat[t, k] = poses.geom_xmat[g, k]
+
+
+def gather_reference(poses: MujocoPoses, targets: TargetTable, front: FrontBuffers) -> None:
+    """:func:`gather` in numpy."""
+    poses.site_xpos.take(targets.camera_site, axis=0, out=front.cam)
+    poses.site_xmat.take(targets.camera_site, axis=0, out=front.rot)
+    poses.geom_xpos.take(targets.target_geom, axis=0, out=front.centre)
+    poses.geom_xmat.take(targets.target_geom, axis=0, out=front.gmat)
+
+
+# --- front -------------------------------------------------------------------------------------
+@jit
+def front(targets: TargetTable, camera: CameraModel, led_on: Bools, f: FrontBuffers) -> None:
+    """Fill ``f``'s per-(robot, target) and per-(robot, sample) buffers from its poses.
+
+    Projected size: the target's two lateral edges (and, for plates, its front and back faces)
+    projected onto the image plane of the view that sees its axis give the width; the far top
+    rim to the near bottom rim (cylinders seen from above) or top to bottom edge (plates),
+    clipped to the strip, give the height.
+    """
+    span = camera.view_span
+    n_views = camera.n_views
+    edge_clip = camera.edge_clip
+    view_centres = camera.view_centres
+    n = f.cam.shape[0]
+    n_t = f.centre.shape[0]
+    n_s = targets.sample_target.shape[0]
+    for i in range(n):
+        r = f.rot[i]
+        for t in range(n_t):
+            d0 = f.centre[t, 0] - f.cam[i, 0]
+            d1 = f.centre[t, 1] - f.cam[i, 1]
+            d2 = f.centre[t, 2] - f.cam[i, 2]
+            f.diff[i, t, 0] = d0
+            f.diff[i, t, 1] = d1
+            f.diff[i, t, 2] = d2
+            g = f.gmat[t]
+            if targets.plate[t]:
+                a0, a1, a2 = g[1], g[4], g[7]  # the plate's own width axis
+            else:  # perpendicular to the line of sight
+                rh = max(math.hypot(d0, d1), 1e-9)
+                a0, a1, a2 = -d1 / rh, d0 / rh, 0.0
+            f.lateral[i, t, 0] = a0
+            f.lateral[i, t, 1] = a1
+            f.lateral[i, t, 2] = a2
+            # Camera frame: x_j = sum_k R_kj d_k.
+            l0 = d0 * r[0] + d1 * r[3] + d2 * r[6]
+            l1 = d0 * r[1] + d1 * r[4] + d2 * r[7]
+            l2 = d0 * r[2] + d1 * r[5] + d2 * r[8]
+            f.local[i, t, 0] = l0
+            f.local[i, t, 1] = l1
+            f.local[i, t, 2] = l2
+            la0 = a0 * r[0] + a1 * r[3] + a2 * r[6]
+            la1 = a0 * r[1] + a1 * r[4] + a2 * r[7]
+            nx, ny, nz = g[0], g[3], g[6]  # the target's x axis (a plate's normal)
+            nl0 = nx * r[0] + ny * r[3] + nz * r[6]
+            nl1 = nx * r[1] + ny * r[4] + nz * r[7]
+            b = math.atan2(l1, l0)
+            dist = math.hypot(l0, l1)
+            f.bearing[i, t] = b
+            f.distance[i, t] = dist
+            rel = (view_centres[0] - b + 0.5 * span) % _TWO_PI
+            view = min(int(rel // span), n_views - 1)
+            offset = 0.5 * span - (rel - view * span)
+            axis = view_centres[view]
+            hw, hd = targets.half_width[t], targets.half_depth[t]
+            ex, ey = la0 * hw, la1 * hw
+            fx, fy = nl0 * hd, nl1 * hd
+            b_left = math.atan2(ey + l1, ex + l0)
+            b_right = math.atan2(-ey + l1, -ex + l0)
+            b_front = math.atan2(fy + l1, fx + l0)
+            b_back = math.atan2(-fy + l1, -fx + l0)
+            u_left = math.tan(min(max(_wrap_compiled(b_left - axis), -edge_clip), edge_clip))
+            u_right = math.tan(min(max(_wrap_compiled(b_right - axis), -edge_clip), edge_clip))
+            u_front = math.tan(min(max(_wrap_compiled(b_front - axis), -edge_clip), edge_clip))
+            u_back = math.tan(min(max(_wrap_compiled(b_back - axis), -edge_clip), edge_clip))
+            du = abs(u_left - u_right)
+            du += abs(u_front - u_back)
+            cos_off = math.cos(offset)
+            depth_far = max((dist + targets.rim[t]) * cos_off, 1e-9)
+            depth_near = max((dist - targets.rim[t]) * cos_off, 1e-9)
+            vt = (l2 + targets.half_height[t]) / depth_far
+            vb = (l2 - targets.half_height[t]) / depth_near
+            dv = max(min(vt, camera.v_top) - max(vb, camera.v_bottom), 0.0)
+            f.half_angle[i, t] = 0.5 * abs(_wrap_compiled(b_left - b_right))
+            w_px = du * camera.px_per_u
+            h_px = dv * camera.px_per_v
+            f.width_px[i, t] = w_px
+            f.height_px[i, t] = h_px
+            area = w_px * h_px
+            f.full_area[i, t] = area
+            ok = area >= targets.min_area[t] and dist <= camera.max_range and not targets.own[i, t]
+            if t < n and not led_on[t]:
+                ok = False  # a dark LED is not a green target
+            if ok and targets.plate[t]:  # a plate shows only its front
+                ok = d0 * nx + d1 * ny + d2 * nz < 0.0
+            f.candidate[i, t] = ok
+        for s in range(n_s):
+            t = targets.sample_target[s]
+            x = f.diff[i, t, 0] + targets.sample_lateral[s] * f.lateral[i, t, 0]
+            y = f.diff[i, t, 1] + targets.sample_lateral[s] * f.lateral[i, t, 1]
+            z = f.diff[i, t, 2] + targets.sample_lateral[s] * f.lateral[i, t, 2]
+            z += targets.sample_dz[s]
+            f.rays[i, s, 0] = x
+            f.rays[i, s, 1] = y
+            f.rays[i, s, 2] = z
+            c0 = x * r[0] + y * r[3] + z * r[6]
+            c1 = x * r[1] + y * r[4] + z * r[7]
+            c2 = x * r[2] + y * r[5] + z * r[8]
+            rh = max(math.hypot(c0, c1), 1e-9)
+            tan_el = c2 / rh
+            inside = tan_el >= camera.tan_el_min and tan_el <= camera.tan_el_max
+            if not inside:  # near the robot: the exact per-view frustum test
+                rel = (view_centres[0] - math.atan2(c1, c0) + 0.5 * span) % _TWO_PI
+                view = min(int(rel // span), n_views - 1)
+                offset = 0.5 * span - (rel - view * span)
+                v = tan_el / math.cos(offset)
+                inside = v >= camera.v_bottom and v <= camera.v_top
+            f.sample_ok[i, s] = inside
+
+
+def _view_offset(camera: CameraModel, bearing: Floats) -> tuple[Ints, Floats]:
+    """Index of the view that sees each bearing, and the bearing's offset from its centre."""
+    span = camera.view_span
+    rel = np.mod(camera.view_centres[0] - bearing + 0.5 * span, _TWO_PI)
+    view = np.minimum((rel // span).astype(np.int64), camera.n_views - 1)
+    return view, 0.5 * span - (rel - view * span)
+
+
+def front_reference(
+    targets: TargetTable, camera: CameraModel, led_on: Bools, f: FrontBuffers
+) -> None:
+    """:func:`front` in vectorised numpy."""
+    n = f.cam.shape[0]
+    rot = f.rot.reshape(n, 3, 3)
+    gmat = f.gmat.reshape(-1, 3, 3)
+    plate = targets.plate
+    diff = f.diff
+    np.subtract(f.centre[None, :, :], f.cam[:, None, :], out=diff)
+    rh_world = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), 1e-9)
+    # Lateral direction of each target as seen by each robot: perpendicular to the line of
+    # sight for cylinders, the plate's own width axis for plates.
+    lateral = f.lateral
+    lateral[..., 0] = -diff[..., 1] / rh_world
+    lateral[..., 1] = diff[..., 0] / rh_world
+    lateral[..., 2] = 0.0
+    lateral[:, plate, :] = gmat[plate, :, 1][None, :, :]
+    local = diff @ rot  # local_j = sum_i R_ij diff_i
+    f.local[...] = local
+    bearing = np.arctan2(local[..., 1], local[..., 0])
+    distance = np.hypot(local[..., 0], local[..., 1])
+    f.bearing[...] = bearing
+    f.distance[...] = distance
+    lat_local = lateral @ rot
+    normal_local = gmat[:, :, 0] @ rot  # (n, T, 3) each target's x axis, camera frame
+    view, offset = _view_offset(camera, bearing)
+    axis = camera.view_centres[view]
+    # Bearings of four edge points: left and right edges (axis ± lateral half width), front
+    # and back faces (axis ± half depth; a cylinder's depth is 0, which adds exactly 0 width).
+    edge = np.empty((2, 4) + bearing.shape)
+    np.multiply(lat_local[..., 0], targets.half_width, out=edge[0, 0])
+    np.multiply(lat_local[..., 1], targets.half_width, out=edge[1, 0])
+    np.multiply(normal_local[..., 0], targets.half_depth, out=edge[0, 2])
+    np.multiply(normal_local[..., 1], targets.half_depth, out=edge[1, 2])
+    np.negative(edge[:, 0], out=edge[:, 1])
+    np.negative(edge[:, 2], out=edge[:, 3])
+    edge[0] += local[..., 0]
+    edge[1] += local[..., 1]
+    b_edge = np.arctan2(edge[1], edge[0])  # (4, n, T): left, right, front, back
+    wrapped = np.mod(b_edge - axis + math.pi, _TWO_PI) - math.pi
+    u = np.tan(np.clip(wrapped, -camera.edge_clip, camera.edge_clip))
+    du = np.abs(u[0] - u[1])
+    du += np.abs(u[2] - u[3])
+    cos_off = np.cos(offset)
+    depth_far = np.maximum((distance + targets.rim) * cos_off, 1e-9)
+    depth_near = np.maximum((distance - targets.rim) * cos_off, 1e-9)
+    v_top = (local[..., 2] + targets.half_height) / depth_far
+    v_bot = (local[..., 2] - targets.half_height) / depth_near
+    dv = np.clip(
+        np.minimum(v_top, camera.v_top) - np.maximum(v_bot, camera.v_bottom), 0.0, None
+    )
+    width = np.mod(b_edge[0] - b_edge[1] + math.pi, _TWO_PI) - math.pi
+    f.half_angle[...] = 0.5 * np.abs(width)
+    np.multiply(du, camera.px_per_u, out=f.width_px)
+    np.multiply(dv, camera.px_per_v, out=f.height_px)
+    np.multiply(f.width_px, f.height_px, out=f.full_area)
+    candidate = f.candidate
+    np.greater_equal(f.full_area, targets.min_area, out=candidate)
+    candidate &= distance <= camera.max_range
+    candidate &= ~targets.own
+    candidate[:, :n] &= led_on[None, :]  # a dark LED is not a green target
+    # Plates (faces) show only their front: normal (the body's x axis) towards the camera.
+    normal = gmat[plate, :, 0]  # (P, 3) x axis of each plate
+    candidate[:, plate] &= (diff[:, plate, :] * normal[None, :, :]).sum(axis=2) < 0.0
+    # Occlusion samples: the ray from the camera to each sample point, and whether the point
+    # is in the camera's field of view (the elevation band every bearing sees, else the exact
+    # per-view frustum test for points very close to the robot).
+    st = targets.sample_target
+    rays = f.rays
+    np.multiply(targets.sample_lateral[None, :, None], lateral[:, st, :], out=rays)
+    rays += diff[:, st, :]
+    rays[..., 2] += targets.sample_dz[None, :]
+    ray_local = rays @ rot
+    rh = np.maximum(np.hypot(ray_local[..., 0], ray_local[..., 1]), 1e-9)
+    tan_el = ray_local[..., 2] / rh
+    inside = (tan_el >= camera.tan_el_min) & (tan_el <= camera.tan_el_max)
+    if not inside.all():
+        _, ray_offset = _view_offset(camera, np.arctan2(ray_local[..., 1], ray_local[..., 0]))
+        v = tan_el / np.cos(ray_offset)
+        inside = (v >= camera.v_bottom) & (v <= camera.v_top)
+    f.sample_ok[...] = inside
+
+
+# --- nearest -----------------------------------------------------------------------------------
+@jit
+def nearest(scene: GeometricScene, out: NearestTargets) -> None:
+    """:func:`gather`, :func:`front`, then each robot's nearest visible target of each class,
+    casting occlusion rays lazily (nearest candidate first, stop once certain)."""
+    poses, targets, f = scene.poses, scene.targets, scene.front
+    gather(poses, targets, f)
+    front(targets, scene.camera, scene.led_on, f)
+    n = f.cam.shape[0]
+    n_s = f.rays.shape[1]
+    # mj_ray reads 3 doubles at each point/direction address. Addresses are signed 64-bit:
+    # numba would turn uintp + int64 into a float.
+    cam_ptr, rays_ptr = np.int64(f.cam.ctypes.data), np.int64(f.rays.ctypes.data)
+    groups_ptr = np.int64(targets.geom_groups.ctypes.data)
+    geom_ptr = np.int64(f.ray_geom.ctypes.data)
+    row = np.int64(_ROW)
+    null = np.int64(0)
+    order = f.order
+    distance = f.distance
+    for i in range(n):
+        for c in range(3):
+            out.visible[i, c] = False
+            out.distance[i, c] = np.inf
+            out.bearing[i, c] = 0.0
+            # This class's candidates, nearest first (stable: ties to the lower index).
+            k = 0
+            for j in range(targets.class_count[c]):
+                t = targets.class_targets[c, j]
+                if not f.candidate[i, t]:
+                    continue
+                p = k
+                while p > 0 and distance[i, order[p - 1]] > distance[i, t]:
+                    order[p] = order[p - 1]
+                    p -= 1
+                order[p] = t
+                k += 1
+            for j in range(k):
+                t = order[j]
+                full, need, step = f.full_area[i, t], targets.min_area[t], targets.inv_samples[t]
+                first, end = targets.sample_start[t], targets.sample_end[t]
+                left = 0
+                for s in range(first, end):
+                    left += f.sample_ok[i, s]
+                hits = 0
+                seen = full * (hits * step) >= need
+                while not seen and left > 0 and full * ((hits + left) * step) >= need:
+                    s = first
+                    while not f.sample_ok[i, s]:
+                        s += 1
+                    first = s + 1
+                    left -= 1
+                    _MJ_RAY(
+                        poses.model_address, poses.data_address, cam_ptr + i * row,
+                        rays_ptr + (i * n_s + s) * row, groups_ptr, np.uint8(1),
+                        np.int32(targets.exclude_body[i]), geom_ptr, null,
+                    )  # fmt: skip
+                    if f.ray_geom[0] == targets.sample_geom[s]:
+                        hits += 1
+                        seen = full * (hits * step) >= need
+                if seen:
+                    out.visible[i, c] = True
+                    out.distance[i, c] = distance[i, t]
+                    out.bearing[i, c] = f.bearing[i, t]
+                    break
+
+
+def nearest_reference(scene: GeometricScene, out: NearestTargets) -> None:
+    """:func:`nearest` in numpy and Python, with the same lazy ray order."""
+    poses, targets, f = scene.poses, scene.targets, scene.front
+    gather_reference(poses, targets, f)
+    front_reference(targets, scene.camera, scene.led_on, f)
+    n, n_t = f.candidate.shape
+    n_s = f.rays.shape[1]
+    masked = np.full((n, n_t + 1), np.inf)  # one padding column, never a candidate
+    np.copyto(masked[:, :n_t], f.distance, where=f.candidate)
+    # Each class's candidates nearest first (stable: ties to the lowest target index).
+    order = np.argsort(masked[:, targets.class_targets], axis=2, kind="stable")
+    cam_ptr, rays_ptr = f.cam.ctypes.data, f.rays.ctypes.data
+    groups_ptr, geom_ptr = targets.geom_groups.ctypes.data, f.ray_geom.ctypes.data
+    out.visible.fill(False)
+    out.distance.fill(np.inf)
+    out.bearing.fill(0.0)
+    for i in range(n):
+        for c in range(3):
+            for j in order[i, c]:
+                t = int(targets.class_targets[c, j])
+                if masked[i, t] == math.inf:  # no candidate left (or the padding column)
+                    break
+                full, need, step = f.full_area[i, t], targets.min_area[t], targets.inv_samples[t]
+                samples = range(int(targets.sample_start[t]), int(targets.sample_end[t]))
+                in_view = [s for s in samples if f.sample_ok[i, s]]
+                hits = 0
+                seen = full * (hits * step) >= need
+                while not seen and in_view and full * ((hits + len(in_view)) * step) >= need:
+                    s = in_view.pop(0)
+                    _MJ_RAY_REFERENCE(
+                        poses.model_address, poses.data_address, cam_ptr + i * _ROW,
+                        rays_ptr + (i * n_s + s) * _ROW, groups_ptr, 1,
+                        int(targets.exclude_body[i]), geom_ptr, 0,
+                    )  # fmt: skip
+                    if f.ray_geom[0] == targets.sample_geom[s]:
+                        hits += 1
+                        seen = full * (hits * step) >= need
+                if seen:
+                    out.visible[i, c] = True
+                    out.distance[i, c] = f.distance[i, t]
+                    out.bearing[i, c] = f.bearing[i, t]
+                    break
+
+
+__all__ = [
+    "UNAVAILABLE_REASON",
+    "VERIFIED_MUJOCO",
+    "CameraModel",
+    "FrontBuffers",
+    "GeometricScene",
+    "MujocoPoses",
+    "NearestTargets",
+    "TargetTable",
+    "front",
+    "front_reference",
+    "gather",
+    "gather_reference",
+    "nearest",
+    "nearest_reference",
+]

@@ -1,0 +1,362 @@
+"""Compiled colour segmentation: a class look-up table, run-based blob labelling, pack grouping.
+
+The OpenCV path of :class:`~cyber_rodent.vision.segmentation.OmniSegmenter` (``backend=
+"numpy"``, the reference) converts the whole stacked image to HSV, thresholds it per class and
+then, per robot and class, labels connected components and gathers pixel statistics with a
+dozen numpy calls; almost all of that work is spent on pixels that belong to no class. The
+compiled path (``backend="numba"``) does the same segmentation in two steps:
+
+* :func:`class_lut`: a table over all 2²⁴ RGB colours whose bit ``c`` says "this colour is in
+  class ``c``'s HSV box". It is computed once per threshold set *with OpenCV's own*
+  ``cvtColor`` and ``inRange``, so a pixel's classes are exactly those of
+  ``OmniSegmenter.masks`` (tested), whatever OpenCV's rounding.
+* :func:`label`: one compiled pass over the stacked strips. Each row is classified through the
+  table and cut into runs of same-class pixels; runs are joined with 8-connectivity to runs of
+  the row above and across the strip's left/right seam (union-find, roots = earliest run, so
+  components come in raster order); then every component's pixel statistics are accumulated in
+  the order numpy's ``bincount`` uses on OpenCV's ``findNonZero`` list, so the sums are
+  bit-identical to the reference. :func:`extents` then gives the bearing interval of each
+  component of one class (a pack's two bands are grouped by it).
+
+The labelling has no numpy twin of the same signature: its reference is the OpenCV path as a
+whole, which the tests compare detection by detection. The pack grouping's pair test is
+written twice, :func:`join_stacked` and :func:`join_stacked_reference` (same signature, same
+decisions), one for each backend.
+
+The kernels read and write named buffers owned by
+:class:`~cyber_rodent.vision.segmentation.Labeller`: :class:`ClassTable`, :class:`StripBuffers`,
+:class:`Runs` and :class:`Extents`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+
+from cyber_rodent.backend import jit
+
+Floats = npt.NDArray[np.float64]
+Ints = npt.NDArray[np.int64]
+Bytes = npt.NDArray[np.uint8]
+#: ``OmniSegmenter``'s inRange intervals of one class: (low, high) HSV bounds, OR-ed.
+HsvBounds = list[tuple[Bytes, Bytes]]
+
+_TWO_PI = 2.0 * math.pi
+
+
+class ClassTable(NamedTuple):
+    """The colour classes of every RGB colour (:func:`class_lut`)."""
+
+    lut: Bytes  #: (2²⁴,) bit c of entry ``r << 16 | g << 8 | b``: the colour is in class c
+    min_chroma: int  #: smallest ``max(r,g,b) − min(r,g,b)`` of any colour in a class
+
+
+class StripBuffers(NamedTuple):
+    """The stacked strips' constants and per-row scratch (rows = robots × height)."""
+
+    height: int  #: rows per robot strip
+    n_classes: int  #: colour classes (bits of the table)
+    column_bearing: Floats  #: (width,) rad, each column's bearing
+    sin_col: Floats  #: (width,) its sine
+    cos_col: Floats  #: (width,) its cosine
+    half_px: float  #: rad, half a column
+    bits: Bytes  #: (rows, width) output: class bits of every pixel
+    edge_left: Ints  #: (rows, n_classes) run touching the left edge, or -1
+    edge_right: Ints  #: (rows, n_classes) run touching the right edge, or -1
+
+
+class Runs(NamedTuple):
+    """Runs of same-class pixels and the components they form (``capacity`` of each)."""
+
+    row: Ints  #: row of each run in the stacked strips
+    c0: Ints  #: its first column
+    c1: Ints  #: its last column
+    cls: Ints  #: its class
+    parent: Ints  #: union-find parent; after :func:`label`, its root run
+    comp: Ints  #: after :func:`label`, its component
+    comp_stats: Floats  #: (capacity, 3) per component: area, sums of sin and cos of bearing
+    comp_ints: Ints  #: (capacity, 4) per component: robot, class, top and bottom row
+
+
+class Extents(NamedTuple):
+    """Input and output of :func:`extents` (``capacity`` components at most)."""
+
+    counts: Ints  #: (3,) runs and components of the last :func:`label`, and the class asked
+    bearing: Floats  #: (capacity,) each component's mean bearing
+    lo: Floats  #: (capacity,) output: low end of its bearing interval, relative to the mean
+    hi: Floats  #: (capacity,) output: high end
+
+
+#: Per threshold set (the tuple of the bounds of each class), its look-up table (16 MiB).
+_LUT_CACHE: dict[tuple[object, ...], ClassTable] = {}
+
+
+def class_lut(bounds: list[HsvBounds]) -> ClassTable:
+    """The class of every RGB colour under ``bounds`` (each class's inRange intervals).
+
+    Greys (floor, walls, bodies) are most of every image; a pixel whose chroma is below the
+    table's minimum is in no class, so the labelling pass skips the table for it. The minimum
+    is measured on the table itself, so the shortcut never changes a pixel's classes. Built
+    with OpenCV on an image holding every colour once, cached per bounds.
+    """
+    key = tuple(tuple((tuple(lo.tolist()), tuple(hi.tolist())) for lo, hi in b) for b in bounds)
+    cached = _LUT_CACHE.get(key)
+    if cached is not None:
+        return cached
+    index = np.arange(1 << 24, dtype=np.uint32)
+    rgb = np.empty((1 << 12, 1 << 12, 3), dtype=np.uint8)
+    flat = rgb.reshape(-1, 3)
+    flat[:, 0] = index >> 16
+    flat[:, 1] = (index >> 8) & 0xFF
+    flat[:, 2] = index & 0xFF
+    hsv = cv2.cvtColor(rgb, cv2.COLOR_RGB2HSV)
+    lut = np.zeros(1 << 24, dtype=np.uint8)
+    for c, intervals in enumerate(bounds):
+        mask = np.zeros(rgb.shape[:2], dtype=np.uint8)
+        for lo, hi in intervals:
+            cv2.bitwise_or(mask, cv2.inRange(hsv, lo, hi), dst=mask)
+        lut |= (mask.reshape(-1) > 0).astype(np.uint8) << c
+    lut.setflags(write=False)
+    member = flat[lut > 0]
+    min_chroma = 256
+    if len(member):
+        min_chroma = int((member.max(axis=1).astype(np.int64) - member.min(axis=1)).min())
+    table = _LUT_CACHE[key] = ClassTable(lut, min_chroma)
+    return table
+
+
+@jit
+def _find(parent: Ints, a: int) -> int:
+    root = a
+    while parent[root] != root:
+        root = parent[root]
+    while parent[a] != root:  # path compression
+        nxt = parent[a]
+        parent[a] = root
+        a = nxt
+    return root
+
+
+@jit
+def _union(parent: Ints, a: int, b: int) -> None:
+    ra = _find(parent, a)
+    rb = _find(parent, b)
+    if ra < rb:
+        parent[rb] = ra
+    elif rb < ra:
+        parent[ra] = rb
+
+
+@jit
+def label(rgb: Bytes, table: ClassTable, strip: StripBuffers, runs: Runs) -> tuple[int, int]:
+    """Label the connected class blobs of stacked strips and sum their pixel statistics.
+
+    Args:
+        rgb: (rows, width, 3) uint8 C-contiguous RGB, every robot's strip stacked.
+
+    Returns:
+        (runs, components), or (-1, 0) when the run buffers are full (the caller retries with
+        room for the worst case). Components come ordered by robot, then in each robot by
+        first pixel in raster order, in ``runs.comp_stats`` and ``runs.comp_ints``.
+    """
+    lut, min_chroma = table
+    height, n_classes, bits = strip.height, strip.n_classes, strip.bits
+    sin_col, cos_col = strip.sin_col, strip.cos_col
+    edge_left, edge_right = strip.edge_left, strip.edge_right
+    run_row, run_c0, run_c1, run_cls, parent, run_comp, comp_stats, comp_ints = runs
+    rows, width = rgb.shape[0], rgb.shape[1]
+    cap = run_row.shape[0]
+    n = 0
+    prev_start = np.zeros(n_classes, dtype=np.int64)
+    prev_end = np.zeros(n_classes, dtype=np.int64)
+    for r in range(rows):
+        any_bits = 0
+        for x in range(width):
+            red, green, blue = (
+                np.int64(rgb[r, x, 0]),
+                np.int64(rgb[r, x, 1]),
+                np.int64(rgb[r, x, 2]),
+            )
+            if max(red, green, blue) - min(red, green, blue) < min_chroma:
+                bits[r, x] = 0
+            else:
+                b = lut[(red << 16) | (green << 8) | blue]
+                bits[r, x] = b
+                any_bits |= b
+        first_row = r % height == 0
+        for c in range(n_classes):
+            start = n
+            edge_left[r, c] = -1
+            edge_right[r, c] = -1
+            x = 0 if (any_bits >> c) & 1 else width
+            while x < width:
+                if (bits[r, x] >> c) & 1:
+                    x0 = x
+                    while x < width and (bits[r, x] >> c) & 1:
+                        x += 1
+                    if n == cap:
+                        return -1, 0
+                    run_row[n] = r
+                    run_c0[n] = x0
+                    run_c1[n] = x - 1
+                    run_cls[n] = c
+                    parent[n] = n
+                    if not first_row:
+                        for q in range(prev_start[c], prev_end[c]):
+                            if run_c0[q] <= x and x0 <= run_c1[q] + 1:
+                                _union(parent, q, n)
+                    if x0 == 0:
+                        edge_left[r, c] = n
+                    if x == width:
+                        edge_right[r, c] = n
+                    n += 1
+                else:
+                    x += 1
+            prev_start[c] = start
+            prev_end[c] = n
+    # The strip is a full circle: pixels in its first and last columns touch (8-connectivity).
+    for r in range(rows):
+        top = r - r % height
+        for c in range(n_classes):
+            a = edge_left[r, c]
+            if a < 0:
+                continue
+            for rr in range(max(top, r - 1), min(top + height, r + 2)):
+                b = edge_right[rr, c]
+                if b >= 0:
+                    _union(parent, a, b)
+    # Components in the order of their earliest run: per robot and class, OpenCV's raster order.
+    comp_of_root = np.full(n, -1, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        root = _find(parent, i)
+        if root == i:
+            comp_of_root[i] = k
+            # robot, class, top row, bottom row (rows within the strip)
+            comp_ints[k, 0] = run_row[i] // height
+            comp_ints[k, 1] = run_cls[i]
+            comp_ints[k, 2] = run_row[i] % height
+            comp_ints[k, 3] = run_row[i] % height
+            comp_stats[k, 0] = 0.0  # area
+            comp_stats[k, 1] = 0.0  # sum of sin(column bearing)
+            comp_stats[k, 2] = 0.0  # sum of cos(column bearing)
+            k += 1
+        parent[i] = root
+        run_comp[i] = comp_of_root[root]
+    # Pixel sums per component in the reference's order: per robot and class, pixels row by row,
+    # left to right (OpenCV's findNonZero), i.e. runs by (robot, class, row, column).
+    order = np.argsort(run_cls[:n] * rows + run_row[:n], kind="mergesort")
+    for j in range(n):
+        i = order[j]
+        g = run_comp[i]
+        row = run_row[i] % height
+        if row < comp_ints[g, 2]:
+            comp_ints[g, 2] = row
+        if row > comp_ints[g, 3]:
+            comp_ints[g, 3] = row
+        for x in range(run_c0[i], run_c1[i] + 1):
+            comp_stats[g, 0] += 1.0
+            comp_stats[g, 1] += sin_col[x]
+            comp_stats[g, 2] += cos_col[x]
+    return n, k
+
+
+@jit
+def extents(runs: Runs, strip: StripBuffers, ext: Extents) -> None:
+    """The bearing interval relative to its mean of each component of class ``ext.counts[2]``
+    (as the reference's ``OmniSegmenter._angular_extent``): the largest deviation of any of its
+    pixels to either side, plus half a pixel; other components get half a pixel either side.
+
+    Within a run the columns' bearings fall steadily (a run never crosses the strip's seam, and
+    a blob spans far less than 180°), so a run's extremes are at its two end pixels; only those
+    are evaluated.
+    """
+    n, k, cls = ext.counts[0], ext.counts[1], ext.counts[2]
+    bearing, lo, hi = ext.bearing, ext.lo, ext.hi
+    column_bearing, half_px = strip.column_bearing, strip.half_px
+    for g in range(k):
+        lo[g] = 0.0
+        hi[g] = 0.0
+    for i in range(n):
+        if runs.cls[i] != cls:
+            continue
+        g = runs.comp[i]
+        for x in (runs.c0[i], runs.c1[i]):
+            d = bearing[g] - column_bearing[x]
+            dev = math.atan2(math.sin(d), math.cos(d))
+            if dev > lo[g]:
+                lo[g] = dev
+            if -dev > hi[g]:
+                hi[g] = -dev
+    for g in range(k):
+        lo[g] = -(lo[g] + half_px)
+        hi[g] = hi[g] + half_px
+
+
+@jit
+def join_stacked(
+    bearing: Floats, lo: Floats, hi: Floats, top: Ints, bottom: Ints, parent: Ints
+) -> bool:
+    """Union, in ``parent``, every pair of blobs that are one pack's two bands; says whether
+    any pair was joined (compiled: it is O(k²) in the blobs).
+
+    Two blobs are joined when their bearing intervals (``lo``/``hi`` relative to the mean
+    ``bearing``) overlap by at least 70 % of the narrower one's width, the narrower is at least
+    45 % as wide as the wider, and the vertical gap between their rows (``top``/``bottom``) is
+    smaller than the taller one's height. Unions link the larger root under the smaller, so a
+    set's root is its smallest blob whatever the order of the unions.
+    """
+    k = bearing.shape[0]
+    joined = False
+    for a in range(k):
+        for b in range(a + 1, k):
+            d = bearing[b] - bearing[a]
+            shift = d - _TWO_PI * np.rint(d / _TWO_PI)  # wrapped to [-π, π]
+            overlap = min(hi[a], shift + hi[b]) - max(lo[a], shift + lo[b])
+            wa, wb = hi[a] - lo[a], hi[b] - lo[b]
+            narrow, wide = min(wa, wb), max(wa, wb)
+            if overlap < 0.7 * narrow or narrow < 0.45 * wide:
+                continue
+            gap = max(top[a], top[b]) - min(bottom[a], bottom[b]) - 1
+            if gap < max(bottom[a] - top[a] + 1, bottom[b] - top[b] + 1):
+                ra, rb = a, b
+                while parent[ra] != ra:
+                    ra = parent[ra]
+                while parent[rb] != rb:
+                    rb = parent[rb]
+                if ra != rb:
+                    parent[max(ra, rb)] = min(ra, rb)
+                joined = True
+    return joined
+
+
+def join_stacked_reference(
+    bearing: Floats, lo: Floats, hi: Floats, top: Ints, bottom: Ints, parent: Ints
+) -> bool:
+    """:func:`join_stacked` in numpy (the reference): the pair test on all pairs at once."""
+    d = bearing[None, :] - bearing[:, None]  # [a, b]: bearing[b] - bearing[a]
+    shift = d - _TWO_PI * np.rint(d / _TWO_PI)
+    overlap = np.minimum(hi[:, None], shift + hi[None, :]) - np.maximum(
+        lo[:, None], shift + lo[None, :]
+    )
+    width = hi - lo
+    narrow = np.minimum(width[:, None], width[None, :])
+    wide = np.maximum(width[:, None], width[None, :])
+    gap = np.maximum(top[:, None], top[None, :]) - np.minimum(bottom[:, None], bottom[None, :]) - 1
+    tall = bottom - top + 1
+    similar = ~((overlap < 0.7 * narrow) | (narrow < 0.45 * wide))
+    pairs = np.triu(similar & (gap < np.maximum(tall[:, None], tall[None, :])), 1)
+    first, second = np.nonzero(pairs)
+    for a, b in zip(first.tolist(), second.tolist(), strict=True):
+        ra, rb = a, b
+        while parent[ra] != ra:
+            ra = int(parent[ra])
+        while parent[rb] != rb:
+            rb = int(parent[rb])
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    return bool(len(first))
