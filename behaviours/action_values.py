@@ -47,7 +47,8 @@ class IncompatibleActionValuesError(ActionValuesError):
     """The file is intact but was made for another format, coder or action set."""
 
 
-def _checksum(header: str, weights: np.ndarray) -> str:
+def values_checksum(header: str, weights: np.ndarray) -> str:
+    """SHA-256 of a values file's header and its weights (little-endian float64)."""
     digest = hashlib.sha256(header.encode("utf-8"))
     digest.update(b"\0")
     digest.update(np.ascontiguousarray(weights, dtype="<f8").tobytes())
@@ -105,7 +106,7 @@ class ActionValues:
     @property
     def checksum(self) -> str:
         """SHA-256 of the header and weights, as written to and verified from disk."""
-        return _checksum(self._header, self.weights)
+        return values_checksum(self._header, self.weights)
 
     def make_coder(self) -> TileCoder:
         """A tile coder that produces this table's indices."""
@@ -197,7 +198,7 @@ class ActionValues:
             raise CorruptActionValuesError(
                 f"{path}: weights must be a 2-D float64 array, got {weights.dtype} {weights.shape}"
             )
-        if _checksum(header, weights) != stored_sum:
+        if values_checksum(header, weights) != stored_sum:
             raise CorruptActionValuesError(
                 f"{path}: SHA-256 checksum mismatch, the file is damaged or was edited"
             )

@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from cyber_rodent.backend import jit
+from cyber_rodent.backend import jit, jit_inline
 from cyber_rodent.vision.kernels import NearestTargets
 
 Floats = npt.NDArray[np.float64]
@@ -117,7 +117,7 @@ def _clip01(x: float) -> float:
     return x
 
 
-@jit
+@jit_inline
 def map_inputs(
     sensors: RangeSensors, nearest: NearestTargets, rules: InputRules, out: InputBuffers
 ) -> None:
@@ -196,7 +196,7 @@ def map_inputs_reference(
 
 
 # --- greedy behaviours -------------------------------------------------------------------------
-@jit
+@jit_inline
 def greedy_commands(
     behaviour: Ints, inputs: BehaviourInputs, tables: GreedyTables, out: Ints
 ) -> int:

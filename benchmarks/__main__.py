@@ -128,7 +128,7 @@ def _scaling_world(n_robots: int, n_packs: int, steps: int, seed: int) -> dict:
     }
 
 
-def _worker(method: str, seed: int, steps: int, warmup: int) -> float:
+def run_worker(method: str, seed: int, steps: int, warmup: int) -> float:
     """One worker process: step a full runner, return its wall seconds."""
     from evolution.runner import EvolutionRunner, RunConfig
 
@@ -150,8 +150,8 @@ def worker_throughput(n_workers: int, steps: int, warmup: int) -> dict:
     """
     env = dict(os.environ, OMP_NUM_THREADS="1", LP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     code = (
-        "import sys; from benchmarks.__main__ import _worker; "
-        "print(_worker('ee', int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])))"
+        "import sys; from benchmarks.__main__ import run_worker; "
+        "print(run_worker('ee', int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])))"
     )
     procs = [
         subprocess.Popen(

@@ -9,12 +9,15 @@ from; the replay is checked to end in the runner's exact state), interleaved wit
 blocks so machine load affects both alike. Their ratio is the runner's overhead; the target is
 at most 1.25x. The time the loop spends inside its own ``mj_step`` calls is printed too.
 
-It also projects the wall time of one 120-generation run on one core (120 generations x 25
+It also times the loop's own cost directly: each control step's physics is timed and
+subtracted, leaving what the runner adds (blocks of steps, minimum and median). It also
+projects the wall time of one 120-generation run on one core (120 generations x 25
 agents x 400 steps = 1.2 M control steps if no agent dies; deaths lengthen EE runs, which need
 every slot to complete each generation), and profiles the loop with cProfile: where time goes by
 component, then the top functions.
 
-Run: ``python -m benchmarks.evolution_throughput [--steps 4000] [--policies auto]``
+Run: ``python -m benchmarks.evolution_throughput [--steps 4000] [--policies auto]
+[--backend numba|numpy]``
 """
 
 from __future__ import annotations
@@ -36,9 +39,9 @@ from evolution.runner import EvolutionRunner, RunConfig
 #: of the first matching function, "other" is the rest.
 COMPONENTS = (
     ("physics (mj_step)", ("mj_step",)),
-    ("vision (nearest_targets / measure_targets)", ("nearest_targets", "measure_targets")),
-    ("behaviour policies (commands)", ("commands",)),
-    ("controller (fill/select/recharge)", ("fill_inputs", "select", "continue_recharge")),
+    ("sense, decide, act (one compiled call)", ("sense_decide_act_fused",)),
+    ("sense, decide, act (stage by stage)", ("sense_decide_act_stepwise",)),
+    ("survival mechanics (begin_step, end_step)", ("begin_step", "end_step")),
     ("scheduler (on_step)", ("on_step",)),
 )
 
@@ -127,6 +130,38 @@ def measure(runner: EvolutionRunner, steps: int, block: int) -> dict[str, float]
     return totals
 
 
+def outside_physics(runner: EvolutionRunner, steps: int, blocks: int = 8) -> list[float]:
+    """Seconds per control step spent outside the physics, for ``blocks`` blocks of ``steps``.
+
+    The step's physics (``SurvivalWorld.advance_physics``: the control step's ``mj_step``
+    calls) is timed and subtracted from the whole step: what is left is the runner's own cost
+    (sensing, deciding, acting, the survival mechanics, the schedule), with no recorder in the
+    loop. The spread between blocks shows the machine's noise; the minimum is the cleanest.
+    """
+    survival = runner.survival
+    advance = survival.advance_physics
+    clock = time.perf_counter
+    physics = [0.0]
+
+    def timed() -> None:
+        start = clock()
+        advance()
+        physics[0] += clock() - start
+
+    survival.advance_physics = timed  # type: ignore[method-assign]
+    per_step = []
+    try:
+        for _ in range(blocks):
+            physics[0] = 0.0
+            start = clock()
+            for _ in range(steps):
+                runner.step()
+            per_step.append((clock() - start - physics[0]) / steps)
+    finally:
+        del survival.advance_physics  # the class's method again
+    return sorted(per_step)
+
+
 def profile(runner: EvolutionRunner, steps: int, top: int) -> tuple[list[tuple[str, float]], str]:
     """cProfile ``steps`` runner steps: component shares (of total time) and the top table."""
     profiler = cProfile.Profile()
@@ -147,7 +182,7 @@ def profile(runner: EvolutionRunner, steps: int, top: int) -> tuple[list[tuple[s
                 seconds += cumtime
         shares.append((label, seconds / total))
         accounted += seconds
-    shares.append(("other (perception mapping, survival mechanics, loop)", 1 - accounted / total))
+    shares.append(("other (event logging, agent switches, the loop)", 1 - accounted / total))
     buffer = io.StringIO()
     pstats.Stats(profiler, stream=buffer).sort_stats("tottime").print_stats(top)
     return shares, buffer.getvalue()
@@ -163,6 +198,10 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--policies", choices=("auto", "trained", "reactive"), default="auto")
     parser.add_argument("--methods", default="ee,ce")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--backend", choices=("numba", "numpy"), default="numba",
+        help="the runner's kernels: compiled, or their numpy references",
+    )  # fmt: skip
     parser.add_argument("--json", help="also write the numbers to this JSON file")
     args = parser.parse_args(argv)
 
@@ -171,7 +210,7 @@ def main(argv: list[str] | None = None) -> dict:
     results: dict = {"policies": label, "methods": {}}
     for method in args.methods.split(","):
         config = RunConfig(method=method)
-        runner = EvolutionRunner(config, args.seed, policies)
+        runner = EvolutionRunner(config, args.seed, policies, backend=args.backend)
         for _ in range(args.warmup):
             runner.step()
         times = measure(runner, args.steps, args.block)
@@ -194,6 +233,10 @@ def main(argv: list[str] | None = None) -> dict:
               f"{runner_s / inside:.2f}x)")  # fmt: skip
         print(f"projected 120-generation run ({paper_steps:,} control steps, no deaths): "
               f"{hours:.2f} h on one core")  # fmt: skip
+        outside = outside_physics(runner, max(1, args.steps // 4))
+        print(f"outside mj_step, per control step: min {1e6 * outside[0]:.1f} us, median "
+              f"{1e6 * outside[len(outside) // 2]:.1f} us ({len(outside)} blocks of "
+              f"{max(1, args.steps // 4)} steps)")  # fmt: skip
         shares, table = profile(runner, args.profile_steps, args.top)
         print(f"profile of {args.profile_steps} steps (cProfile inflates Python-side costs):")
         for name, share in shares:
@@ -204,6 +247,8 @@ def main(argv: list[str] | None = None) -> dict:
             "raw_physics_steps_per_s": args.steps / raw_s,
             "ratio_to_raw_physics": ratio,
             "ratio_to_mj_step_inside_loop": runner_s / times["inside_s"],
+            "outside_physics_us_min": 1e6 * outside[0],
+            "outside_physics_us_median": 1e6 * outside[len(outside) // 2],
             "projected_hours_120_generations": hours,
             "profile_shares": dict(shares),
             "summary": runner.summary(),

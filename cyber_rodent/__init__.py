@@ -8,4 +8,4 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

@@ -19,14 +19,56 @@ unboxing of dozens of separate arguments (see ``docs/design.md`` §3).
 from __future__ import annotations
 
 import functools
+import hashlib
+import importlib.util
+import os
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, Literal, TypeVar, cast
+
+#: The packages whose ``kernels`` modules hold compiled code (found, not imported: the import
+#: direction ``evolution -> behaviours -> cyber_rodent`` holds).
+KERNEL_PACKAGES = ("cyber_rodent", "behaviours", "evolution")
+
+
+def kernel_sources() -> list[Path]:
+    """Every source file with compiled kernels: this module and each ``*kernels.py``."""
+    files = [Path(__file__)]
+    for name in KERNEL_PACKAGES:
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.origin is not None:
+            files += sorted(Path(spec.origin).parent.rglob("*kernels.py"))
+    return files
+
+
+def compiled_cache_dir() -> Path:
+    """Where numba caches this installation's compiled kernels.
+
+    numba checks a cached function against its own source file only: a kernel that calls a
+    kernel of another module would keep running the old callee after that module changed, and
+    an index that names a renamed buffer type fails to load. The cache therefore lives in a
+    directory named after a hash of every kernel source (and numba's version), so compiled code
+    is reused only with exactly the sources it was compiled from. The base directory is
+    ``$NUMBA_CACHE_DIR`` if set, else the user's cache directory.
+    """
+    digest = hashlib.sha256()
+    for path in kernel_sources():
+        digest.update(path.read_bytes())
+    base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "cyber-rodent"
+    )
+    return Path(base) / f"numba-{numba_version}-{digest.hexdigest()[:16]}"
+
 
 numba: Any
 try:
     import numba
+
+    numba_version = numba.__version__
+    numba.config.CACHE_DIR = str(compiled_cache_dir())
 except ImportError:  # pragma: no cover - numba is a dependency; backend="numpy" still works
     numba = None
+    numba_version = ""
 
 #: The two implementations of every per-step rule.
 Backend = Literal["numba", "numpy"]
@@ -54,13 +96,24 @@ def check_backend(backend: object) -> Backend:
 def jit(function: F) -> F:
     """Compile ``function`` with ``numba.njit(cache=True, nogil=True)``.
 
-    Compiled functions are cached on disk next to their source, so a new process pays the
-    compilation once per installation. Without numba the function is returned unchanged (the
+    Compiled functions are cached on disk (:func:`compiled_cache_dir`), so a new process pays
+    the compilation once per installation. Without numba the function is returned unchanged (the
     ``"numba"`` backend is then refused by :func:`check_backend`).
     """
     if numba is None:  # pragma: no cover
         return function
     return cast(F, numba.njit(cache=True, nogil=True)(function))
+
+
+def jit_inline(function: F) -> F:
+    """:func:`jit` for a helper of other kernels, inlined into every kernel that calls it.
+
+    Named buffers are passed by value between compiled functions; a helper called per robot and
+    target would copy them at every call, so it is inlined instead.
+    """
+    if numba is None:  # pragma: no cover
+        return function
+    return cast(F, numba.njit(cache=True, nogil=True, inline="always")(function))
 
 
 def pick(backend: Backend, compiled: F, reference: F) -> F:
@@ -83,4 +136,16 @@ def bind(kernel: Callable[..., Any], *buffers: Any) -> Callable[[], Any]:
     return functools.partial(kernel, *buffers)
 
 
-__all__ = ["BACKENDS", "DEFAULT_BACKEND", "Backend", "bind", "check_backend", "jit", "pick"]
+__all__ = [
+    "BACKENDS",
+    "DEFAULT_BACKEND",
+    "KERNEL_PACKAGES",
+    "Backend",
+    "bind",
+    "check_backend",
+    "compiled_cache_dir",
+    "jit",
+    "jit_inline",
+    "kernel_sources",
+    "pick",
+]

@@ -302,8 +302,8 @@ def _check_version(header: dict[str, Any], path: Path) -> None:
     if version == 1:
         raise CheckpointError(
             f"{path}: checkpoint format 1 (pickled objects) is no longer read; this version "
-            f"reads format {FORMAT_VERSION} — re-run, or resume with the cyber-rodent release "
-            "that wrote it"
+            f"reads format {FORMAT_VERSION} — re-run, or resume with cyber-rodent 0.1.0, which "
+            "wrote it"
         )
     writer = header.get("code_version")
     by = f"cyber-rodent {writer}" if isinstance(writer, str) else "the release that wrote it"

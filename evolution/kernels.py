@@ -38,7 +38,7 @@ from behaviours.kernels import (
     map_inputs,
     map_inputs_reference,
 )
-from cyber_rodent.backend import jit
+from cyber_rodent.backend import jit, jit_inline
 from cyber_rodent.vision.kernels import (
     GeometricScene,
     NearestTargets,
@@ -161,7 +161,7 @@ class ScheduleRules(NamedTuple):
 
 
 # --- controller --------------------------------------------------------------------------------
-@jit
+@jit_inline
 def decide(
     rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
 ) -> None:
@@ -234,7 +234,7 @@ def decide_reference(
 
 
 # --- acting ------------------------------------------------------------------------------------
-@jit
+@jit_inline
 def steer(
     decided: ControllerBuffers, docked: Bools, command_speeds: Floats, out: ActionBuffers
 ) -> None:

@@ -307,9 +307,15 @@ class TimeSharingScheduler:
         A runner passes the same event buffers every step, so the kernel is bound to them once
         (and rebound whenever other arrays arrive).
         """
-        arrays = (energy, died, captured, mated_with)
         bound = self._bound_arrays
-        if bound is None or any(a is not b for a, b in zip(arrays, bound, strict=True)):
+        if (
+            bound is None
+            or energy is not bound[0]
+            or died is not bound[1]
+            or captured is not bound[2]
+            or mated_with is not bound[3]
+        ):
+            arrays = (energy, died, captured, mated_with)
             self._bound_tick = bind(self._tick, self.counters, StepOutcome(*arrays), self._rules)
             self._bound_arrays = arrays
         return bool(self._bound_tick())

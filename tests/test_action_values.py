@@ -84,16 +84,15 @@ def test_truncated_and_foreign_files_are_corrupt(values, tmp_path):
 
 def _rewrite_header(path, edit) -> None:
     """Re-save with an edited header and a *valid* checksum (an intact but different file)."""
-    from behaviours.action_values import _checksum
+    from behaviours.action_values import values_checksum
 
     with np.load(path) as data:
         weights = data["weights"].copy()
         header = json.loads(str(data["header"][()]))
     edit(header)
     text = json.dumps(header, sort_keys=True, separators=(",", ":"))
-    np.savez(
-        path, weights=weights, header=np.array(text), sha256=np.array(_checksum(text, weights))
-    )
+    checksum = np.array(values_checksum(text, weights))
+    np.savez(path, weights=weights, header=np.array(text), sha256=checksum)
 
 
 def test_other_format_version_is_incompatible(values, tmp_path):

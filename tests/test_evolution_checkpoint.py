@@ -428,7 +428,7 @@ def test_a_checkpoint_of_the_pickle_format_gets_one_line(tmp_path: Path) -> None
     marker = tmp_path / "marker"
     path = _write(tmp_path / "gen_00003.ckpt", _old_header(), _malicious_pickle(marker))
     message = f"{path}: checkpoint format 1 (pickled objects) is no longer read; this version "
-    message += f"reads format {FORMAT_VERSION}"
+    message += f"reads format {FORMAT_VERSION} — re-run, or resume with cyber-rodent 0.1.0"
     _expect_rejected(path, re.escape(message))
     with pytest.raises(CheckpointError, match=re.escape(message)):
         EvolutionRunner.from_checkpoint(path, REACTIVE)

@@ -11,6 +11,9 @@ stopped), so that it cannot pass vacuously.
 
 from __future__ import annotations
 
+import math
+
+import mujoco
 import numpy as np
 import pytest
 
@@ -26,12 +29,22 @@ from behaviours.kernels import (
     map_inputs,
     map_inputs_reference,
 )
+from cyber_rodent import constants as C
+from cyber_rodent.backend import Backend
 from cyber_rodent.commands import COMMAND_SPEEDS
 from cyber_rodent.constants import PROXIMITY_SIX
-from cyber_rodent.vision import BATTERY, FACE, LED
+from cyber_rodent.survival import RechargeEnd, StepEvents, SurvivalConfig, SurvivalWorld
+from cyber_rodent.survival import kernels as survival_kernels
+from cyber_rodent.survival.energy import recharge_gain
+from cyber_rodent.vision import BATTERY, FACE, LED, N_CLASSES, CameraConfig, segmentation_kernels
+from cyber_rodent.vision.batch_rendering import BatchOmniRenderer
+from cyber_rodent.vision.batch_rendering import kernels as view_kernels
 from cyber_rodent.vision.geometric import GeometricVision
 from cyber_rodent.vision.kernels import NearestTargets
-from cyber_rodent.world import World
+from cyber_rodent.vision.projection import OmniProjection
+from cyber_rodent.vision.segmentation import OmniSegmenter
+from cyber_rodent.vision.targets import target_geometry
+from cyber_rodent.world import LED_OFF_RGBA, LED_ON_RGBA, World, WorldConfig
 from evolution.kernels import (
     Act,
     ActionBuffers,
@@ -109,9 +122,17 @@ def test_geometric_vision_kernels_match_their_references(
     compiled = GeometricVision(scene_world, backend="numba")
     reference = GeometricVision(scene_world, backend="numpy")
     n = scene_world.config.n_robots
-    seen = hidden = 0
+    seen = hidden = skipped = 0
     for _ in scenes(60):
         out_c, out_r = compiled.nearest_targets(), reference.nearest_targets()
+        np.testing.assert_array_equal(out_c.visible, out_r.visible)
+        np.testing.assert_allclose(out_c.distance, out_r.distance, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(out_c.bearing, out_r.bearing, rtol=0, atol=1e-12)
+        # The search computed positions for all targets, sizes and samples only for those it
+        # reached: its positions equal the full front's, its possible targets include every
+        # candidate.
+        lazy = _copy(compiled.front)
+        compiled.measure_targets(), reference.measure_targets()  # the full front, each backend
         fc, fr = compiled.front, reference.front
         for name in ("cam", "rot", "centre", "gmat", "candidate", "sample_ok"):
             np.testing.assert_array_equal(getattr(fc, name), getattr(fr, name), err_msg=name)
@@ -119,13 +140,16 @@ def test_geometric_vision_kernels_match_their_references(
             np.testing.assert_allclose(getattr(fc, name), getattr(fr, name), rtol=0, atol=1e-12)
         for name in ("width_px", "height_px", "full_area"):
             np.testing.assert_allclose(getattr(fc, name), getattr(fr, name), rtol=1e-11, atol=0)
-        np.testing.assert_array_equal(out_c.visible, out_r.visible)
-        np.testing.assert_allclose(out_c.distance, out_r.distance, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(out_c.bearing, out_r.bearing, rtol=0, atol=1e-12)
+        for name in ("bearing", "distance", "local", "diff"):
+            np.testing.assert_array_equal(getattr(lazy, name), getattr(fc, name))
+        assert not (fc.candidate & ~lazy.candidate).any()
+        cand = fc.candidate
         seen += int(out_c.visible.sum())
         hidden += int((fc.candidate.any(axis=1) & ~out_c.visible.any(axis=1)).sum())
+        skipped += int((~cand).sum())
     assert seen > 20 * n  # targets were seen ...
-    assert hidden > 0  # ... and a robot's candidates were all hidden (rays decided something)
+    assert hidden > 0  # ... a robot's candidates were all hidden (rays decided something)
+    assert skipped > 0  # ... and targets were skipped by the search
 
 
 # --- behaviours --------------------------------------------------------------------------------
@@ -352,3 +376,570 @@ def test_a_whole_generation_is_the_same_on_either_backend(method: str) -> None:
     assert a.statistics().equals(b.statistics())
     assert a.events.to_frame().equals(b.events.to_frame())
     assert (a.events.to_frame()["kind"] == "mate").sum() >= 10
+
+
+# --- survival ----------------------------------------------------------------------------------
+def _survival_rules(sw: SurvivalWorld) -> survival_kernels.SurvivalRules:
+    """The rules' scalars as ``SurvivalWorld`` gives them to its kernels."""
+    cfg = sw.config
+    return survival_kernels.SurvivalRules(
+        inv_wheel_radius=1.0 / float(sw.world.wheel_radius),
+        top_speed=float(C.TOP_SPEED),
+        recharge_gain=float(recharge_gain(cfg)),
+        max_energy=float(cfg.max_energy),
+        max_recharge_steps=int(cfg.max_recharge_steps),
+        energy_decay=float(cfg.energy_decay),
+        max_steps_code=int(RechargeEnd.MAX_STEPS),
+        full_code=int(RechargeEnd.FULL),
+    )
+
+
+def _random_survival_state(
+    sw: SurvivalWorld, rng: np.random.Generator
+) -> survival_kernels.SurvivalState:
+    """A random state written into ``sw``'s arrays: some robots dead, some about to die, some
+    docked (a few a step from the recharge limit or from full energy), some in their reflex."""
+    n, cfg = sw.n_robots, sw.config
+    gain = recharge_gain(cfg)
+    alive = rng.random(n) < 0.8
+    docked = alive & (rng.random(n) < 0.3)
+    sw.energy[:] = rng.uniform(1.0, cfg.max_energy, n)
+    dying = rng.random(n) < 0.25
+    sw.energy[dying] = rng.uniform(0.0, cfg.energy_decay, n)[dying] + 1e-9
+    near_full = docked & (rng.random(n) < 0.5)
+    sw.energy[near_full] = cfg.max_energy - gain * rng.uniform(0.0, 1.5, n)[near_full]
+    sw.energy[~alive] = 0.0
+    sw.alive[:] = alive
+    sw.docked[:] = docked
+    steps = rng.integers(0, cfg.max_recharge_steps, n)
+    steps[rng.random(n) < 0.3] = cfg.max_recharge_steps - 1
+    sw.recharge_steps[:] = np.where(docked, steps, 0)
+    reflex = ~docked & (rng.random(n) < 0.3)
+    sw.reflex_steps_left[:] = np.where(reflex, rng.integers(1, cfg.reflex_max_steps + 1, n), 0)
+    sw.reflex_wheels[:] = rng.uniform(-C.TOP_SPEED, C.TOP_SPEED, (n, 2))
+    return survival_kernels.SurvivalState(
+        sw.energy, sw.recharge_steps, sw.docked, sw.alive, sw.reflex_steps_left, sw.reflex_wheels
+    )
+
+
+def test_survival_begin_matches_its_reference(scene_world: World, scenes: Scenes) -> None:
+    """Commands, LEDs and mating signals on random survival states of the crowded scenes; bad
+    wheel commands refused by both with nothing written."""
+    sw = SurvivalWorld(scene_world, rng=np.random.default_rng(1))
+    n = sw.n_robots
+    rules = _survival_rules(sw)
+    rng = np.random.default_rng(12)
+    led_rgba = np.stack([LED_OFF_RGBA, LED_ON_RGBA]).astype(np.float64)
+    counts = dict.fromkeys(
+        ("docked", "dead", "reflex", "switched", "silenced", "refused", "release"), 0
+    )
+    for trial in scenes(40):
+        state = _random_survival_state(sw, rng)
+        wheels = rng.uniform(-C.TOP_SPEED, C.TOP_SPEED, (n, 2))
+        wheels[rng.random((n, 2)) < 0.1] = C.TOP_SPEED  # on the limit: allowed
+        if trial % 5 == 4:  # one bad wheel: NaN, infinite or beyond the limit
+            bad = (np.nan, -np.inf, 1.001 * C.TOP_SPEED)[trial % 3]
+            wheels[rng.integers(n), rng.integers(2)] = bad
+        # Mostly "continue": a docked robot that stops must be released first (by the world).
+        continue_recharge = rng.random(n) < (0.7 if trial % 3 == 0 else 1.0)
+        commands = survival_kernels.StepCommands(
+            wheels, rng.random(n) < 0.5, rng.random(n) < 0.6, continue_recharge
+        )
+        actuation = survival_kernels.Actuation(
+            ctrl=np.full((n, 2), -9.0),
+            led_on=scene_world.led_on.copy(),
+            geom_rgba=scene_world.model.geom_rgba.copy(),
+            led_geom=np.asarray(scene_world.led_geom, dtype=np.int64),
+            led_rgba=led_rgba,
+        )
+        flags = survival_kernels.StepFlags(*(rng.random(n) < 0.5 for _ in range(3)))
+        ran = []
+        for kernel in (survival_kernels.begin, survival_kernels.begin_reference):
+            args = (_copy(commands), _copy(state), _copy(actuation), rules, _copy(flags))
+            ran.append((kernel(*args), args))
+        (status_c, args_c), (status_r, args_r) = ran
+        assert status_c == status_r
+        for a, b in zip(args_c, args_r, strict=True):
+            _assert_equal(a, b)
+        if status_c != survival_kernels.BEGIN_OK:  # refused: nothing written
+            counts["refused" if status_c == survival_kernels.BAD_WHEELS else "release"] += 1
+            _assert_equal(args_c[2], actuation)
+            _assert_equal(args_c[4], flags)
+            continue
+        out_actuation, out_flags = args_c[2], args_c[4]
+        counts["docked"] += int(state.docked.sum())
+        counts["dead"] += int((~state.alive).sum())
+        counts["reflex"] += int((state.reflex_steps_left > 0).sum())
+        counts["switched"] += int((out_actuation.led_on != actuation.led_on).sum())
+        counts["silenced"] += int((commands.mate & state.alive & ~out_flags.mate_signal).sum())
+    release = counts.pop("release")
+    assert all(k >= 5 for k in counts.values()) and release >= 1, (counts, release)
+
+
+def test_survival_end_matches_its_reference(scene_world: World, scenes: Scenes) -> None:
+    """Reflex countdown, recharge, the stopping rules, decay and deaths on random states."""
+    sw = SurvivalWorld(scene_world, rng=np.random.default_rng(1))
+    n = sw.n_robots
+    rules = _survival_rules(sw)
+    rng = np.random.default_rng(13)
+    reasons = np.zeros(max(rules.max_steps_code, rules.full_code) + 1, dtype=np.int64)
+    deaths = decays = 0
+    for _ in scenes(60):
+        state = _random_survival_state(sw, rng)
+        flags = survival_kernels.StepFlags(
+            state.docked.copy(), state.reflex_steps_left > 0, rng.random(n) < 0.5
+        )
+        outcome = survival_kernels.EnergyOutcome(
+            np.full(n, -7, dtype=np.int64), np.ones(n, dtype=bool)
+        )
+        ran = []
+        for kernel in (survival_kernels.end, survival_kernels.end_reference):
+            args = (_copy(state), rules, _copy(flags), _copy(outcome))
+            ran.append((kernel(*args), args))
+        (counts_c, args_c), (counts_r, args_r) = ran
+        assert counts_c == counts_r
+        for a, b in zip(args_c, args_r, strict=True):
+            _assert_equal(a, b)
+        stop_reason, died = args_c[3]
+        assert counts_c == (int((stop_reason != 0).sum()), int(died.sum()))
+        reasons += np.bincount(stop_reason, minlength=len(reasons))
+        deaths += int(died.sum())
+        decays += int((state.alive & ~state.docked).sum())
+    assert reasons[rules.max_steps_code] >= 5 and reasons[rules.full_code] >= 5, reasons
+    assert deaths >= 5 and decays > deaths
+
+
+def test_teeth_on_electrodes_matches_its_reference(scene_world: World, scenes: Scenes) -> None:
+    """The contact scan on the crowded scenes with robots placed with their teeth on packs."""
+    sw = SurvivalWorld(scene_world, rng=np.random.default_rng(1))
+    n, n_packs = sw.n_robots, sw.n_packs
+    tables = sw.docking.tables
+    teeth, electrodes = scene_world.teeth_geom, scene_world.electrode_geom
+    rng = np.random.default_rng(14)
+    eligible = refused = 0
+    for _ in scenes(40):
+        packs = scene_world.pack_positions()
+        for i in range(min(n, n_packs, 3)):  # teeth 17 cm from a pack's centre: touching
+            yaw = rng.uniform(-math.pi, math.pi)
+            x, y = packs[i] - 0.17 * np.array([math.cos(yaw), math.sin(yaw)])
+            scene_world.set_robot_pose(i, x, y, yaw)
+        mujoco.mj_forward(scene_world.model, scene_world.data)
+        state = _random_survival_state(sw, rng)
+        flags = survival_kernels.StepFlags(
+            state.docked.copy(), state.reflex_steps_left > 0, np.zeros(n, dtype=bool)
+        )
+        geom = scene_world.data.contact.geom
+        ncon = len(geom)
+        padded = np.zeros((ncon + 4, 2), dtype=np.int32)
+        padded[:ncon] = geom
+        if n_packs:  # a teeth-electrode pair past the contacts: never read
+            padded[ncon:] = (teeth[0], electrodes[0])
+        contacts = survival_kernels.ContactScan(
+            padded, np.array([ncon], dtype=np.int64), np.full((ncon + 4, 2), -5, dtype=np.int64)
+        )
+        ran = []
+        for kernel in (
+            survival_kernels.teeth_on_electrodes,
+            survival_kernels.teeth_on_electrodes_reference,
+        ):
+            args = (_copy(contacts), tables, _copy(state), _copy(flags))
+            ran.append((kernel(*args), args))
+        (k_c, args_c), (k_r, args_r) = ran
+        assert k_c == k_r
+        for a, b in zip(args_c, args_r, strict=True):
+            _assert_equal(a, b)
+        touching = (np.isin(geom[:, 0], teeth) & np.isin(geom[:, 1], electrodes)) | (
+            np.isin(geom[:, 1], teeth) & np.isin(geom[:, 0], electrodes)
+        )
+        eligible += k_c
+        refused += int(touching.sum()) - k_c
+    if n_packs:
+        assert eligible >= 5 and refused >= 5, (eligible, refused)
+    else:
+        assert eligible == refused == 0
+
+
+# Scripted survival worlds: robots that seek packs, seek each other and wander.
+SEEK_PACK, SEEK_ROBOT, WANDER = 0, 1, 2
+#: Net +4 per recharge step: a robot that docks with less than 40 reaches the step limit first.
+SURVIVAL_CONFIG = SurvivalConfig(decay_while_recharging=True)
+#: Below this energy a scripted robot seeks a pack whatever its mode.
+HUNGRY = 20.0
+
+
+def _survival_world(backend: Backend, seed: int = 3) -> SurvivalWorld:
+    world = World(WorldConfig(), np.random.default_rng(seed))
+    return SurvivalWorld(world, SURVIVAL_CONFIG, np.random.default_rng(seed), backend=backend)
+
+
+def _steer_to(pose: np.ndarray, target: np.ndarray) -> tuple[float, float]:
+    """Wheel speeds that turn towards ``target`` and drive on once roughly facing it."""
+    x, y, yaw = pose
+    error = (math.atan2(target[1] - y, target[0] - x) - yaw + math.pi) % (2 * math.pi) - math.pi
+    forward = 0.35 * max(math.cos(error), 0.0) ** 4
+    turn = float(np.clip(0.4 * error, -0.3, 0.3))
+    return forward - turn, forward + turn
+
+
+def _scripted_commands(
+    sw: SurvivalWorld, mode: np.ndarray, rng: np.random.Generator
+) -> tuple[np.ndarray, ...]:
+    """The scripted robots' commands, from the world's state and ``rng``."""
+    n = sw.n_robots
+    poses = sw.world.poses()
+    packs = sw.world.pack_positions()
+    wheels = np.zeros((n, 2))
+    noise = rng.uniform(-0.05, 0.05, size=(n, 2))
+    wander = rng.uniform(-C.TOP_SPEED, C.TOP_SPEED, size=(n, 2))
+    for i in range(n):
+        if mode[i] == SEEK_PACK or sw.energy[i] < HUNGRY:
+            near = packs[np.argmin(np.linalg.norm(packs - poses[i, :2], axis=1))]
+            wheels[i] = _steer_to(poses[i], near)
+        elif mode[i] == SEEK_ROBOT:
+            others = np.delete(np.arange(n), i)
+            gaps = np.linalg.norm(poses[others, :2] - poses[i, :2], axis=1)
+            wheels[i] = _steer_to(poses[i], poses[others[np.argmin(gaps)], :2])
+        else:
+            wheels[i] = wander[i]
+    wheels = np.clip(wheels + noise, -C.TOP_SPEED, C.TOP_SPEED)
+    led = rng.random(n) < 0.5
+    mate = mode == SEEK_ROBOT
+    continue_recharge = rng.random(n) < 0.985
+    return wheels, led, mate, continue_recharge
+
+
+def _assert_same_survival(a: SurvivalWorld, b: SurvivalWorld) -> None:
+    np.testing.assert_array_equal(a.world.data.qpos, b.world.data.qpos)
+    np.testing.assert_array_equal(a.world.data.qvel, b.world.data.qvel)
+    np.testing.assert_array_equal(a.world.data.ctrl, b.world.data.ctrl)
+    for name in ("energy", "recharge_steps", "docked", "dock_pack", "reflex_steps_left", "alive"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    for name in StepEvents.ARRAYS:
+        np.testing.assert_array_equal(getattr(a.events, name), getattr(b.events, name), name)
+    assert a.events.any == b.events.any
+    np.testing.assert_array_equal(a.world.led_on, b.world.led_on)
+    np.testing.assert_array_equal(a.world.model.geom_rgba, b.world.model.geom_rgba)
+
+
+def test_compiled_mechanics_equal_numpy() -> None:
+    """Whole survival worlds on either backend, given the same commands: scripted robots dock,
+    end recharges, die and mate many times, with the same trajectory, events and state."""
+    compiled, reference = _survival_world("numba"), _survival_world("numpy")
+    rng = np.random.default_rng(5)
+    n = compiled.n_robots
+    mode = np.full(n, SEEK_PACK)
+    counts = dict.fromkeys(("dock", "recharge_end", "death", "mate"), 0)
+    reasons: set[RechargeEnd] = set()
+    for step in range(2500):
+        if step % 60 == 0:
+            mode = rng.choice([SEEK_PACK, SEEK_ROBOT, WANDER], size=n, p=[0.35, 0.55, 0.1])
+        commands = _scripted_commands(compiled, mode, rng)
+        a = compiled.step(*commands)
+        b = reference.step(*commands)
+        _assert_same_survival(compiled, reference)
+        counts["dock"] += len(a.dockings())
+        counts["recharge_end"] += len(a.recharge_ends())
+        reasons.update(reason for _, reason in a.recharge_ends())
+        counts["mate"] += len(a.matings())
+        for i in a.deaths():  # time sharing: the next agent takes over the robot
+            counts["death"] += 1
+            for sw in (compiled, reference):
+                sw.set_energy(i, sw.config.initial_energy)
+        assert a.dockings() == b.dockings() and a.recharge_ends() == b.recharge_ends()
+        assert a.deaths() == b.deaths() and a.matings() == b.matings()
+    # Not vacuous: every rule the kernels implement fired many times.
+    for kind, k in counts.items():
+        assert k >= 10, (kind, counts)
+    assert reasons == {RechargeEnd.DECISION, RechargeEnd.MAX_STEPS, RechargeEnd.FULL}
+
+
+# --- batch rendering ---------------------------------------------------------------------------
+def test_compiled_views_match_numpy(
+    scene_world: World, scenes: Scenes, batch_renderer: BatchOmniRenderer
+) -> None:
+    """Each view's camera, headlight and draw commands, some geoms hidden (they split runs)."""
+    batch = batch_renderer
+    m = scene_world.model
+    for seed in scenes(10):
+        if seed % 3 == 0:
+            m.geom_rgba[batch.geometry.geoms[seed], 3] = 0.0  # a hidden geom splits runs
+        outputs = []
+        for fn in (view_kernels.frame_views, view_kernels.frame_views_reference):
+            out = view_kernels.ViewOutputs(
+                clip_t=np.zeros(batch.view_outputs.clip_t.shape, np.float32),
+                head=np.zeros(batch.view_outputs.head.shape, np.float32),
+                commands=np.zeros_like(batch.view_outputs.commands),
+            )
+            n = fn(batch.state, batch.view_geometry, out)
+            outputs.append((n, out.clip_t, out.head, out.commands[:n].copy()))
+        m.geom_rgba[batch.geometry.geoms[seed], 3] = 1.0
+        (n0, clip0, head0, cmd0), (n1, clip1, head1, cmd1) = outputs
+        assert n0 == n1 > 0
+        np.testing.assert_array_equal(cmd0, cmd1)
+        np.testing.assert_allclose(clip0, clip1, atol=1e-5)
+        np.testing.assert_allclose(head0, head1, atol=1e-6)
+
+
+def test_numpy_backend_renders_the_same_images(
+    scene_world: World, scenes: Scenes, batch_renderer: BatchOmniRenderer
+) -> None:
+    """The renderer built with the numpy views kernel draws exactly what the compiled one does."""
+    batch = batch_renderer
+    assert batch.backend == "numba"
+    with BatchOmniRenderer(scene_world, CameraConfig(), backend="numpy") as reference:
+        assert reference.backend == "numpy"
+        for _ in scenes(2):
+            np.testing.assert_array_equal(reference.render(), batch.render())
+
+
+# --- segmentation ------------------------------------------------------------------------------
+def test_stacked_pair_test_kernel_matches_reference() -> None:
+    """Random blob sets, many near the thresholds: the same pairs joined, the same roots."""
+    rng = np.random.default_rng(3)
+    n_joined = 0
+    for _ in range(300):
+        k = int(rng.integers(2, 9))
+        bearing = rng.uniform(-np.pi, np.pi, k)
+        bearing[1:] = np.where(rng.random(k - 1) < 0.6, bearing[0] + rng.normal(0, 0.02, k - 1),
+                               bearing[1:])  # fmt: skip
+        half = rng.uniform(0.01, 0.1, k)
+        lo, hi = -half * rng.uniform(0.8, 1.2, k), half * rng.uniform(0.8, 1.2, k)
+        top = rng.integers(0, 100, k)
+        bottom = top + rng.integers(0, 20, k)
+        parents = []
+        joined = []
+        for fn in (segmentation_kernels.join_stacked, segmentation_kernels.join_stacked_reference):
+            parent = np.arange(k)
+            joined.append(fn(bearing, lo, hi, top, bottom, parent))
+            while not np.array_equal(parent[parent], parent):
+                parent = parent[parent]
+            parents.append(parent)
+        assert joined[0] == joined[1]
+        np.testing.assert_array_equal(parents[0], parents[1])
+        n_joined += joined[0]
+    assert 30 < n_joined < 270
+
+
+def _labelling_buffers(
+    rows: int, height: int, bearing: np.ndarray, capacity: int
+) -> tuple[
+    segmentation_kernels.StripBuffers, segmentation_kernels.Runs, segmentation_kernels.Extents
+]:
+    """The labelling's buffers, filled with marks that neither backend writes."""
+    width = len(bearing)
+    strip = segmentation_kernels.StripBuffers(
+        height=height,
+        n_classes=N_CLASSES,
+        column_bearing=bearing,
+        sin_col=np.sin(bearing),
+        cos_col=np.cos(bearing),
+        half_px=math.pi / width,
+        bits=np.full((rows, width), 0xEE, dtype=np.uint8),
+        edge_left=np.full((rows, N_CLASSES), -5, dtype=np.int64),
+        edge_right=np.full((rows, N_CLASSES), -5, dtype=np.int64),
+    )
+    runs = segmentation_kernels.Runs(
+        *(np.full(capacity, -5, dtype=np.int64) for _ in range(6)),
+        comp_stats=np.full((capacity, 3), -5.0),
+        comp_ints=np.full((capacity, 4), -5, dtype=np.int64),
+    )
+    ext = segmentation_kernels.Extents(
+        np.zeros(3, dtype=np.int64), *(np.full(capacity, -5.0) for _ in range(3))
+    )
+    return strip, runs, ext
+
+
+def _label_both(
+    rgb: np.ndarray,
+    table: segmentation_kernels.ClassTable,
+    height: int,
+    bearing: np.ndarray,
+    capacity: int | None = None,
+) -> tuple[tuple[int, int], segmentation_kernels.Runs]:
+    """:func:`label` and its reference on one stacked image, then :func:`extents` and its
+    reference for every class: every buffer equal. Returns (runs, components) and the runs."""
+    rows, width = rgb.shape[:2]
+    if capacity is None:
+        capacity = rows * N_CLASSES * ((width + 1) // 2)  # the worst case
+    ran = []
+    for label, extents in (
+        (segmentation_kernels.label, segmentation_kernels.extents),
+        (segmentation_kernels.label_reference, segmentation_kernels.extents_reference),
+    ):
+        strip, runs, ext = _labelling_buffers(rows, height, bearing, capacity)
+        n, k = label(rgb, table, strip, runs)
+        done = [(n, k), strip, runs]
+        if n >= 0:
+            mean = np.arctan2(runs.comp_stats[:k, 1], runs.comp_stats[:k, 2])
+            for cls in range(N_CLASSES):
+                ext.counts[:] = (n, k, cls)
+                ext.bearing[:k] = mean
+                extents(runs, strip, ext)
+                done.append(_copy(ext))
+        ran.append(done)
+    compiled, reference = ran
+    assert compiled[0] == reference[0]
+    if compiled[0][0] >= 0:
+        for a, b in zip(compiled[1:], reference[1:], strict=True):
+            _assert_equal(a, b)
+    return compiled[0], compiled[2]
+
+
+def _seam_joined(runs: segmentation_kernels.Runs, n: int, width: int) -> int:
+    """Components holding both a run that starts at the strip's left edge and another that
+    ends at its right edge."""
+    comp, c0, c1 = runs.comp[:n], runs.c0[:n], runs.c1[:n]
+    left = set(comp[(c0 == 0) & (c1 < width - 1)].tolist())
+    right = set(comp[(c1 == width - 1) & (c0 > 0)].tolist())
+    return len(left & right)
+
+
+def test_labelling_kernels_match_their_references_on_rendered_strips(
+    scene_world: World, scenes: Scenes, batch_renderer: BatchOmniRenderer
+) -> None:
+    """label and extents, buffer by buffer, and the detections of either backend's segmenter,
+    on the crowded scenes rendered."""
+    config = CameraConfig()
+    geometry = target_geometry(scene_world)
+    fast = OmniSegmenter(config, geometry, backend="numba")
+    slow = OmniSegmenter(config, geometry, backend="numpy")
+    bearing = fast.projection.column_bearing
+    classes: set[int] = set()
+    merged = detections = 0
+    for _ in scenes(6):
+        strips = batch_renderer.render()
+        n_robots, height, width, _ = strips.shape
+        rgb = np.ascontiguousarray(strips.reshape(n_robots * height, width, 3))
+        (n, k), runs = _label_both(rgb, fast.table, height, bearing, n_robots * height * 24)
+        assert n >= 0
+        classes.update(runs.comp_ints[:k, 1].tolist())
+        merged += n - k  # runs joined to others
+        a, b = fast.detect(strips), slow.detect(strips)
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(x, y)
+        detections += len(a[0])
+    expected = {LED, FACE, BATTERY} if scene_world.config.n_packs else {LED, FACE}
+    n = scene_world.config.n_robots
+    assert expected <= classes and merged > 20 * n and detections >= 2 * n
+
+
+def test_labelling_kernels_match_their_references_on_hand_made_strips(
+    segmentation_strips: dict[str, tuple[CameraConfig, np.ndarray]],
+) -> None:
+    """label and extents on the hand-made strips (their colour table), on random class-bit
+    images (overlapping classes, runs wider than half the strip, blobs across the seam) and
+    with run buffers one run too small."""
+    geometry = target_geometry(World(WorldConfig(n_robots=1, n_packs=1)))
+    seams = overflows = wide = 0
+    for config, strips in segmentation_strips.values():
+        table = OmniSegmenter(config, geometry).table
+        n_robots, height, width, _ = strips.shape
+        rgb = np.ascontiguousarray(strips.reshape(n_robots * height, width, 3))
+        bearing = OmniProjection(config).column_bearing
+        (n, _), runs = _label_both(rgb, table, height, bearing)
+        seams += _seam_joined(runs, n, width)
+        if n > 0:  # one run more than the buffers hold: both refuse; exactly enough: both run
+            assert _label_both(rgb, table, height, bearing, n - 1)[0] == (-1, 0)
+            assert _label_both(rgb, table, height, bearing, n)[0][0] == n
+            overflows += 1
+    identity = segmentation_kernels.identity_table(N_CLASSES)
+    rng = np.random.default_rng(9)
+    overlapping = 0
+    for _ in range(300):
+        n_robots, height, width = (int(v) for v in rng.integers((1, 1, 2), (4, 9, 41)))
+        rows = n_robots * height
+        density = rng.uniform(0.1, 0.8, N_CLASSES)
+        bits = np.zeros((rows, width), dtype=np.uint8)
+        for c in range(N_CLASSES):
+            bits |= (rng.random((rows, width)) < density[c]).astype(np.uint8) << c
+        if rng.random() < 0.2:
+            bits[rng.integers(rows)] = 1 << int(rng.integers(N_CLASSES))  # a whole row
+        rgb = np.zeros((rows, width, 3), dtype=np.uint8)
+        rgb[..., 2] = bits
+        bearing = np.linspace(math.pi, -math.pi, width, endpoint=False)
+        (n, _), runs = _label_both(rgb, identity, height, bearing)
+        seams += _seam_joined(runs, n, width)
+        wide += int((runs.c1[:n] - runs.c0[:n] + 1 > width // 2).sum())
+        overlapping += int(((bits & (bits - 1)) != 0).sum())  # two classes or more
+    assert seams >= 20 and overflows >= 3 and wide >= 20 and overlapping > 0
+
+
+def test_segmenters_match_on_hand_made_strips(
+    segmentation_strips: dict[str, tuple[CameraConfig, np.ndarray]],
+) -> None:
+    """Either backend's detections (random and near-threshold colours, blobs across the seam
+    and touching at a corner, a pack cut by its ring, a checkerboard, empty strips) and blob
+    measurements of single masks."""
+    geometry = target_geometry(World(WorldConfig(n_robots=1, n_packs=1)))
+    detections = measured = 0
+    for config, strips in segmentation_strips.values():
+        fast = OmniSegmenter(config, geometry, backend="numba")
+        slow = OmniSegmenter(config, geometry, backend="numpy")
+        a, b = fast.detect(strips), slow.detect(strips)
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(x, y)
+        detections += len(a[0])
+        masks = fast.masks_from_classes(a[5])
+        for c in range(N_CLASSES):
+            for i in range(strips.shape[0]):
+                blobs_c, blobs_r = fast.measure_blobs(masks[c, i], c), slow.measure_blobs(
+                    masks[c, i], c
+                )
+                for x, y in zip(blobs_c, blobs_r, strict=True):
+                    np.testing.assert_array_equal(x, y)
+                measured += len(blobs_c[0])
+    assert detections >= 10 and measured > detections
+
+
+def test_mate_matches_its_reference(scene_world: World) -> None:
+    """IR mating on random signals, states and streaks, with pairs of robots placed facing each
+    other (at the distance and angle limits and beyond): streaks, exchanges and their order."""
+    n = scene_world.config.n_robots
+    config = SurvivalConfig(mate_consecutive_steps=2)
+    rules = survival_kernels.MatingRules(
+        reach2=config.mate_distance**2,
+        cos_angle=math.cos(math.radians(config.mate_angle_deg)),
+        consecutive_steps=config.mate_consecutive_steps,
+    )
+    rng = np.random.default_rng(17)
+    d = scene_world.data
+    exchanged = grown = reset = 0
+    for trial in range(200):
+        scene_world.reset(rng)
+        for i in range(0, n - 1, 2):  # pairs facing each other, a little off axis
+            x, y = rng.uniform(-0.6, 0.6, size=2)
+            gap = rng.uniform(0.1, 0.4) / 2
+            heading = rng.uniform(-math.pi, math.pi)
+            c, s = math.cos(heading), math.sin(heading)
+            twist = rng.normal(0.0, 0.12, size=2)
+            scene_world.set_robot_pose(i, x - gap * c, y - gap * s, heading + twist[0])
+            back = heading + math.pi + twist[1]
+            scene_world.set_robot_pose(i + 1, x + gap * c, y + gap * s, back)
+        mujoco.mj_forward(scene_world.model, d)
+        signal = rng.random(n) < 0.8
+        alive = rng.random(n) < 0.95
+        docked = rng.random(n) < 0.05
+        streak = rng.integers(0, 3, (n, n)) * (rng.random((n, n)) < 0.5)
+        streak = np.triu(streak, 1) + np.triu(streak, 1).T
+        partner = np.full(n, -1, dtype=np.int64)
+        runs = []
+        for kernel in (survival_kernels.mate, survival_kernels.mate_reference):
+            ports = survival_kernels.IrPorts(
+                site=np.asarray(scene_world.ir_port_site, dtype=np.int64),
+                site_xpos=d.site_xpos,
+                site_xmat=d.site_xmat,
+                streak=streak.copy(),
+                streak_active=np.array([trial % 4 != 0]),
+                pairs=np.zeros((n * n, 3)),
+            )
+            out = partner.copy()
+            runs.append((kernel(signal, alive, docked, ports, rules, out), ports, out))
+        (any_c, ports_c, out_c), (any_r, ports_r, out_r) = runs
+        assert any_c == any_r
+        np.testing.assert_array_equal(out_c, out_r)
+        np.testing.assert_array_equal(ports_c.streak, ports_r.streak)
+        assert ports_c.streak_active[0] == ports_r.streak_active[0]
+        exchanged += int(any_c)
+        grown += int((ports_c.streak > streak).any())
+        reset += int(((ports_c.streak == 0) & (streak > 0)).any())
+    assert exchanged >= 2 and grown >= 5 and reset >= 10, (exchanged, grown, reset)

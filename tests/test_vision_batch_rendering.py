@@ -1,5 +1,6 @@
 """The batched omni renderer against MuJoCo's: same pixels (nearly), same segmentation, same
-detections; own body hidden; LED colour followed; errors as ``OmniRenderer``'s.
+detections; own body hidden; LED colour followed; errors as ``OmniRenderer``'s. (Its views
+kernel against the numpy reference, and the images of either backend: ``test_kernel_parity.py``.)
 
 Both renderers really render (EGL, off-screen) the same world states, one after the other in one
 process (two GL contexts), which also checks that each makes its own context current.
@@ -17,12 +18,7 @@ import pytest
 from cyber_rodent.render import FieldRenderer
 from cyber_rodent.vision import FACE, LED, CameraConfig
 from cyber_rodent.vision.agreement import random_scene
-from cyber_rodent.vision.batch_rendering import (
-    BatchOmniRenderer,
-    build_geometry,
-    geom_mesh,
-    kernels,
-)
+from cyber_rodent.vision.batch_rendering import BatchOmniRenderer, build_geometry, geom_mesh
 from cyber_rodent.vision.rendering import OmniRenderer
 from cyber_rodent.vision.segmentation import OmniSegmenter
 from cyber_rodent.vision.targets import target_geometry
@@ -288,7 +284,7 @@ def test_unsupported_geom_types_raise() -> None:
             geom_mesh(int(gtype), np.array([0.1, 0.1, 0.1]), 16, 4)
 
 
-# --- meshes and the compiled kernel --------------------------------------------------------------
+# --- meshes and backends -----------------------------------------------------------------------
 SHAPES_XML = """
 <mujoco>
   <worldbody>
@@ -337,41 +333,6 @@ def test_meshes_are_closed_outward_and_of_the_right_volume() -> None:
             assert 0.3 * volume[name] < signed <= volume[name] * (1 + 1e-6), (name, level)
             if level == 0:
                 assert signed >= 0.75 * volume[name], name
-
-
-def test_compiled_views_match_numpy(world, renderers) -> None:
-    _, batch = renderers
-    m = world.model
-    for seed in range(10):
-        _scene(world, 100 + seed)
-        if seed % 3 == 0:
-            m.geom_rgba[batch.geometry.geoms[seed], 3] = 0.0  # a hidden geom splits runs
-        outputs = []
-        for fn in (kernels.frame_views, kernels.frame_views_reference):
-            out = kernels.ViewOutputs(
-                clip_t=np.zeros(batch.view_outputs.clip_t.shape, np.float32),
-                head=np.zeros(batch.view_outputs.head.shape, np.float32),
-                commands=np.zeros_like(batch.view_outputs.commands),
-            )
-            n = fn(batch.state, batch.view_geometry, out)
-            outputs.append((n, out.clip_t, out.head, out.commands[:n].copy()))
-        m.geom_rgba[batch.geometry.geoms[seed], 3] = 1.0
-        (n0, clip0, head0, cmd0), (n1, clip1, head1, cmd1) = outputs
-        assert n0 == n1 > 0
-        np.testing.assert_array_equal(cmd0, cmd1)
-        np.testing.assert_allclose(clip0, clip1, atol=1e-5)
-        np.testing.assert_allclose(head0, head1, atol=1e-6)
-
-
-def test_numpy_backend_renders_the_same_images(world, renderers) -> None:
-    """The renderer built with the numpy views kernel draws exactly what the compiled one does."""
-    _, batch = renderers
-    assert batch.backend == "numba"
-    with BatchOmniRenderer(world, CameraConfig(), backend="numpy") as reference:
-        assert reference.backend == "numpy"
-        for seed in (0, 3):
-            _scene(world, seed)
-            np.testing.assert_array_equal(reference.render(), batch.render())
 
 
 def test_unknown_backend_is_refused(world) -> None:

@@ -10,7 +10,7 @@ import pytest
 
 from cyber_rodent.vision import BATTERY, FACE, LED, CameraConfig, VisionNoise, make_provider
 from cyber_rodent.vision.geometric import (
-    _VISIBLE_GROUPS,
+    VISIBLE_GROUPS,
     GeometricVision,
     widen_ray_culling_bounds,
 )
@@ -98,7 +98,7 @@ def test_multiray_after_widening_matches_exact_mj_ray() -> None:
                 d,
                 cam[i],
                 rays.ravel(),
-                _VISIBLE_GROUPS,
+                VISIBLE_GROUPS,
                 1,
                 int(world.chassis_body[i]),
                 got_g,
@@ -109,7 +109,7 @@ def test_multiray_after_widening_matches_exact_mj_ray() -> None:
             )
             for k, ray in enumerate(rays):
                 dist = mujoco.mj_ray(
-                    m, d, cam[i], ray, _VISIBLE_GROUPS, 1, int(world.chassis_body[i]), gid
+                    m, d, cam[i], ray, VISIBLE_GROUPS, 1, int(world.chassis_body[i]), gid
                 )
                 assert got_g[k] == gid[0]
                 assert got_d[k] == pytest.approx(dist)
@@ -163,3 +163,28 @@ def test_dropout_one_hides_everything_and_zero_noise_is_exact(world: World) -> N
     again = make_provider("geometric", world).observe()
     np.testing.assert_array_equal(clean.bearing, again.bearing)
     np.testing.assert_array_equal(clean.distance, again.distance)
+
+
+def test_measurements_are_fresh_arrays() -> None:
+    """Measurements kept from one call must not change at the next (the kernels' buffers are
+    reused; what leaves the provider is a copy)."""
+    from tests.conftest import crowd
+
+    world = World(WorldConfig())
+    vision = GeometricVision(world, backend="numba")
+    scenes = crowd(world, np.random.default_rng(3), 2)
+    next(scenes)
+    first = vision.measure_targets()
+    kept = first.distance.copy(), first.visible.copy()
+    next(scenes)
+    second = vision.measure_targets()
+    assert not np.array_equal(second.distance, kept[0])  # the scene did change
+    np.testing.assert_array_equal(first.distance, kept[0])
+    np.testing.assert_array_equal(first.visible, kept[1])
+
+
+def test_backend_is_validated() -> None:
+    world = World(WorldConfig(n_robots=2, n_packs=1))
+    with pytest.raises(ValueError, match=r"backend must be one of numba, numpy, got 'cuda'"):
+        GeometricVision(world, backend="cuda")  # type: ignore[arg-type]
+    assert GeometricVision(world).backend == "numba"  # the compiled kernels by default

@@ -14,13 +14,17 @@ construction (``backend``) and binds it to its named buffers once:
   decay of everyone else and deaths;
 * :func:`teeth_on_electrodes`: the contact scan for captures; it returns only the (robot,
   pack) pairs of robots that may dock (alive, not docked, not in their rotation reflex); the
-  alignment test and the docking itself stay in Python (rare).
+  alignment test and the docking itself stay in Python (rare);
+* :func:`mate`: IR mating: which signalling pairs hold the condition (ports facing each other
+  within the angle, within the distance), their consecutive-step streaks, and the exchanges
+  (nearest pairs first, one partner per robot per step).
 
-``tests/test_survival_kernel.py`` checks that both backends give bit-identical runs.
+``tests/test_kernel_parity.py`` checks each kernel against its reference, and whole runs.
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -50,6 +54,12 @@ class StepCommands(NamedTuple):
     wheels: Floats  #: (n, 2) left/right wheel rim speeds, m/s
     led: Flags  #: (n,) green LED on
     mate: Flags  #: (n,) willing to mate
+    continue_recharge: Flags  #: (n,) a docked robot's recharge decision (True: continue)
+
+
+#: :func:`begin` results: done; a wheel speed is NaN or out of range; a docked robot stops
+#: recharging and must be released first. Nothing is written unless the result is OK.
+BEGIN_OK, BAD_WHEELS, RELEASE_FIRST = 0, 1, 2
 
 
 class Actuation(NamedTuple):
@@ -116,14 +126,17 @@ def begin(
     actuation: Actuation,
     rules: SurvivalRules,
     flags: StepFlags,
-) -> bool:
-    """First half of a control step (``SurvivalWorld.begin_step`` after the recharge decisions).
+) -> int:
+    """First half of a control step (``SurvivalWorld.begin_step``).
 
     Writes the motor commands ``actuation.ctrl`` in rad/s, the LED state ``actuation.led_on``
     and the LED geoms' colours, and the step's ``flags``.
 
     Returns:
-        False, with nothing written, if a wheel speed is NaN or outside ±``top_speed``.
+        :data:`BEGIN_OK`; or, with nothing written, :data:`BAD_WHEELS` if a wheel speed is NaN
+        or outside ±``top_speed``, else :data:`RELEASE_FIRST` if a docked robot's recharge
+        decision is "stop" (its release draws the reflex from the world's generator, in
+        Python; then this runs again).
     """
     wheels = commands.wheels
     top_speed = rules.top_speed
@@ -132,7 +145,10 @@ def begin(
         for k in range(2):
             v = wheels[i, k]
             if not (-top_speed <= v <= top_speed):  # NaN fails too
-                return False
+                return BAD_WHEELS
+    for i in range(n):
+        if state.docked[i] and not commands.continue_recharge[i]:
+            return RELEASE_FIRST
     inv_radius = rules.inv_wheel_radius
     alive = state.alive
     ctrl = actuation.ctrl
@@ -158,7 +174,7 @@ def begin(
             for k in range(4):
                 actuation.geom_rgba[actuation.led_geom[i], k] = colour[k]
         flags.mate_signal[i] = commands.mate[i] and alive[i] and not rech and not reflex
-    return True
+    return BEGIN_OK
 
 
 def begin_reference(
@@ -167,7 +183,7 @@ def begin_reference(
     actuation: Actuation,
     rules: SurvivalRules,
     flags: StepFlags,
-) -> bool:
+) -> int:
     """:func:`begin` in numpy: a handful of calls on (n,) arrays.
 
     Rare states (docked, reflex, dead) are counted with ``count_nonzero`` (cheap) and handled
@@ -176,7 +192,9 @@ def begin_reference(
     wheels = commands.wheels
     top = rules.top_speed
     if not (-top <= wheels.min() and wheels.max() <= top):  # NaN fails too
-        return False
+        return BAD_WHEELS
+    if (state.docked & ~commands.continue_recharge).any():
+        return RELEASE_FIRST
     count = np.count_nonzero
     alive = state.alive
     np.copyto(flags.recharging, state.docked)
@@ -207,7 +225,7 @@ def begin_reference(
     if n_recharging or n_reflex:
         np.logical_and(signal, ~flags.recharging, out=signal)
         np.logical_and(signal, ~flags.in_reflex, out=signal)
-    return True
+    return BEGIN_OK
 
 
 # --- end: energy, recharge stopping rules, deaths ------------------------------------------
@@ -363,7 +381,161 @@ def teeth_on_electrodes_reference(
     return k
 
 
+# --- IR mating ---------------------------------------------------------------------------------
+class IrPorts(NamedTuple):
+    """The robots' IR ports (views of MuJoCo's data) and the mating streaks."""
+
+    site: Ints  #: (n,) each robot's IR port site
+    site_xpos: Floats  #: (nsite, 3) site positions
+    site_xmat: Floats  #: (nsite, 9) site frames, row-major; the port points along z
+    streak: Ints  #: (n, n) consecutive steps each pair has held the condition (symmetric)
+    streak_active: Flags  #: (1,) some pair has a streak
+    pairs: Floats  #: (n * n, 3) scratch: distance², robot a, robot b of the facing pairs
+
+
+class MatingRules(NamedTuple):
+    """The IR exchange's geometry (``SurvivalConfig``)."""
+
+    reach2: float  #: mate_distance², m²
+    cos_angle: float  #: cos(mate_angle_deg)
+    consecutive_steps: int  #: mate_consecutive_steps
+
+
+@jit
+def mate(
+    signal: Flags, alive: Flags, docked: Flags, ports: IrPorts, rules: MatingRules, partner: Ints
+) -> bool:
+    """Advance the streaks of the pairs that hold the mating condition; record exchanges.
+
+    Args:
+        signal: (n,) the robots that signal Mate this step (free and living ones only).
+        alive, docked: (n,) the robots' state after the step's mechanics.
+        ports: the IR ports and streaks (updated in place).
+        rules: the geometry.
+        partner: (n,) the step's mate partners (-1: none), written for new exchanges.
+
+    Returns:
+        True if an exchange happened.
+    """
+    n = signal.shape[0]
+    signalling = 0
+    for a in range(n):
+        signalling += signal[a]
+    if signalling < 2:
+        if ports.streak_active[0]:
+            ports.streak[:, :] = 0
+            ports.streak_active[0] = False
+        return False
+    pos, axes, site = ports.site_xpos, ports.site_xmat, ports.site
+    pairs = ports.pairs
+    k = 0
+    for a in range(n):
+        if not (signal[a] and alive[a] and not docked[a]):
+            continue
+        pa = pos[site[a]]
+        for b in range(a + 1, n):
+            if not (signal[b] and alive[b] and not docked[b]):
+                continue
+            pb = pos[site[b]]
+            dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
+            d2 = dx * dx + dy * dy + dz * dz
+            if not (0.0 < d2 <= rules.reach2):
+                continue
+            za, zb = axes[site[a]], axes[site[b]]  # each port's z axis: (m[2], m[5], m[8])
+            dist = math.sqrt(d2)
+            limit = rules.cos_angle * dist
+            if (za[2] * dx + za[5] * dy + za[8] * dz) >= limit and (
+                -(zb[2] * dx + zb[5] * dy + zb[8] * dz) >= limit
+            ):
+                # Facing pairs in order of (distance², a, b): nearest pairs exchange first.
+                p = k
+                while p > 0 and (
+                    pairs[p - 1, 0] > d2
+                    or (pairs[p - 1, 0] == d2 and (pairs[p - 1, 1], pairs[p - 1, 2]) > (a, b))
+                ):
+                    pairs[p] = pairs[p - 1]
+                    p -= 1
+                pairs[p, 0] = d2
+                pairs[p, 1] = a
+                pairs[p, 2] = b
+                k += 1
+    # Consecutive-step streaks: pairs that hold the condition count up, all others reset.
+    for j in range(k):
+        a, b = int(pairs[j, 1]), int(pairs[j, 2])
+        pairs[j, 0] = ports.streak[a, b] + 1  # the new streak (the order is already fixed)
+    if ports.streak_active[0]:
+        ports.streak[:, :] = 0
+    for j in range(k):
+        a, b = int(pairs[j, 1]), int(pairs[j, 2])
+        ports.streak[a, b] = ports.streak[b, a] = int(pairs[j, 0])
+    ports.streak_active[0] = k > 0
+    exchanged = False
+    for j in range(k):  # one partner per robot per step, nearest pairs first
+        a, b = int(pairs[j, 1]), int(pairs[j, 2])
+        if ports.streak[a, b] >= rules.consecutive_steps and partner[a] < 0 and partner[b] < 0:
+            partner[a] = b
+            partner[b] = a
+            ports.streak[a, b] = ports.streak[b, a] = 0
+            exchanged = True
+    return exchanged
+
+
+def mate_reference(
+    signal: Flags, alive: Flags, docked: Flags, ports: IrPorts, rules: MatingRules, partner: Ints
+) -> bool:
+    """:func:`mate` in Python and numpy (lists of the few signalling robots)."""
+    if np.count_nonzero(signal) < 2:
+        if ports.streak_active[0]:
+            ports.streak[:] = 0
+            ports.streak_active[0] = False
+        return False
+    who = np.flatnonzero(signal & alive & ~docked).tolist()
+    pos = ports.site_xpos[ports.site].tolist()
+    close = []
+    for a_k, a in enumerate(who):
+        pa = pos[a]
+        for b in who[a_k + 1 :]:
+            pb = pos[b]
+            dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
+            d2 = dx * dx + dy * dy + dz * dz
+            if 0.0 < d2 <= rules.reach2:
+                close.append((a, b, d2, dx, dy, dz))
+    facing = []
+    if close:
+        axes = ports.site_xmat[ports.site].tolist()  # row-major 3x3
+        for a, b, d2, dx, dy, dz in close:
+            za, zb = axes[a], axes[b]  # each port's z axis: (m[2], m[5], m[8])
+            limit = rules.cos_angle * math.sqrt(d2)
+            if (za[2] * dx + za[5] * dy + za[8] * dz) >= limit and (
+                -(zb[2] * dx + zb[5] * dy + zb[8] * dz) >= limit
+            ):
+                facing.append((d2, a, b))
+    streak = ports.streak
+    previous = {(a, b): int(streak[a, b]) for _, a, b in facing}
+    if ports.streak_active[0]:
+        streak[:] = 0
+    for (a, b), count in previous.items():
+        streak[a, b] = streak[b, a] = count + 1
+    ports.streak_active[0] = bool(facing)
+    ready = sorted(p for p in facing if streak[p[1], p[2]] >= rules.consecutive_steps)
+    exchanged = False
+    for _, a, b in ready:  # one partner per robot per step, nearest pairs first
+        if partner[a] < 0 and partner[b] < 0:
+            partner[a] = b
+            partner[b] = a
+            streak[a, b] = streak[b, a] = 0
+            exchanged = True
+    return exchanged
+
+
 __all__ = [
+    "BAD_WHEELS",
+    "BEGIN_OK",
+    "RELEASE_FIRST",
+    "IrPorts",
+    "MatingRules",
+    "mate",
+    "mate_reference",
     "Actuation",
     "ContactScan",
     "DockingTables",

@@ -12,8 +12,11 @@ import math
 
 import numpy as np
 
+from cyber_rodent.backend import Backend, bind, pick
+from cyber_rodent.survival import kernels
 from cyber_rodent.survival.config import SurvivalConfig
 from cyber_rodent.survival.events import StepEvents
+from cyber_rodent.survival.kernels import IrPorts, MatingRules
 from cyber_rodent.world import World
 
 
@@ -23,83 +26,67 @@ class Mating:
     Args:
         world: the physical world (its robots' IR port sites).
         config: the survival rules.
+        signal, alive, docked: (n,) the survival world's flags, read after every step.
+        partner: (n,) the step events' mate partners, written for exchanges.
+        backend: ``"numba"`` (:func:`~cyber_rodent.survival.kernels.mate`) or ``"numpy"``
+            (its reference).
 
     Attributes:
         streak: (n, n) int, consecutive steps each pair has held the mating condition
             (symmetric; reset when the pair exchanges or stops holding it).
-        streak_active: some pair has a streak (so :attr:`streak` is not all zeros).
     """
 
-    def __init__(self, world: World, config: SurvivalConfig):
+    def __init__(
+        self,
+        world: World,
+        config: SurvivalConfig,
+        signal: np.ndarray,
+        alive: np.ndarray,
+        docked: np.ndarray,
+        partner: np.ndarray,
+        backend: Backend,
+    ):
         self.world = world
         self.config = config
         n = world.config.n_robots
         self.streak = np.zeros((n, n), dtype=np.int64)
-        self.streak_active = False
         self._ir_sites = world.ir_port_site
-        self._cos_mate = math.cos(math.radians(config.mate_angle_deg))
+        d = world.data
+        self.ports = IrPorts(
+            site=np.asarray(world.ir_port_site, dtype=np.int64),
+            site_xpos=d.site_xpos,
+            site_xmat=d.site_xmat,
+            streak=self.streak,
+            streak_active=np.zeros(1, dtype=np.bool_),
+            pairs=np.zeros((n * n, 3)),
+        )
+        self.rules = MatingRules(
+            reach2=float(config.mate_distance) ** 2,
+            cos_angle=math.cos(math.radians(config.mate_angle_deg)),
+            consecutive_steps=int(config.mate_consecutive_steps),
+        )
+        kernel = pick(backend, kernels.mate, kernels.mate_reference)
+        self._mate = bind(kernel, signal, alive, docked, self.ports, self.rules, partner)
+
+    @property
+    def streak_active(self) -> bool:
+        """Some pair has a streak (so :attr:`streak` is not all zeros)."""
+        return bool(self.ports.streak_active[0])
+
+    @streak_active.setter
+    def streak_active(self, active: bool) -> None:
+        self.ports.streak_active[0] = active
 
     def reset(self) -> None:
         """Forget every streak."""
         self.streak[:] = 0
         self.streak_active = False
 
-    def after_step(
-        self, signal: np.ndarray, alive: np.ndarray, docked: np.ndarray, events: StepEvents
-    ) -> None:
-        """Record this step's exchanges in ``events``; ``signal`` marks who signals Mate."""
-        if np.count_nonzero(signal) >= 2:
-            self.detect(signal, alive, docked, events)
-        elif self.streak_active:
-            self.reset()
-
-    def detect(
-        self, signal: np.ndarray, alive: np.ndarray, docked: np.ndarray, events: StepEvents
-    ) -> None:
-        """Advance the streaks of the signalling, free, living robots and record exchanges."""
-        # Plain Python over the signalling pairs: with a few robots this is several times
-        # cheaper than the (n, n) numpy version (ir_geometry), and it runs every step.
-        cfg = self.config
-        sig = signal & alive & ~docked
-        who = np.flatnonzero(sig).tolist()
-        pos = self.world.data.site_xpos[self._ir_sites].tolist()
-        reach2 = cfg.mate_distance**2
-        close = []
-        for a_k, a in enumerate(who):
-            pa = pos[a]
-            for b in who[a_k + 1 :]:
-                pb = pos[b]
-                dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
-                d2 = dx * dx + dy * dy + dz * dz
-                if 0.0 < d2 <= reach2:
-                    close.append((a, b, d2, dx, dy, dz))
-        facing = []
-        if close:
-            axes = self.world.data.site_xmat[self._ir_sites].tolist()  # row-major 3x3
-            limit = self._cos_mate
-            for a, b, d2, dx, dy, dz in close:
-                za, zb = axes[a], axes[b]  # each port's z axis: (m[2], m[5], m[8])
-                dist = math.sqrt(d2)
-                if (za[2] * dx + za[5] * dy + za[8] * dz) >= limit * dist and (
-                    -(zb[2] * dx + zb[5] * dy + zb[8] * dz) >= limit * dist
-                ):
-                    facing.append((d2, a, b))
-        # Consecutive-step streaks: pairs that hold the condition count up, all others reset.
-        streak = self.streak
-        previous = {(a, b): int(streak[a, b]) for _, a, b in facing}
-        if self.streak_active:
-            streak[:] = 0
-        for (a, b), k in previous.items():
-            streak[a, b] = streak[b, a] = k + 1
-        self.streak_active = bool(facing)
-        ready = sorted(p for p in facing if streak[p[1], p[2]] >= cfg.mate_consecutive_steps)
-        # A robot exchanges with one partner per step: nearest pairs first (deterministic).
-        for _, a, b in ready:
-            if events.mate_partner[a] < 0 and events.mate_partner[b] < 0:
-                events.mate_partner[a] = b
-                events.mate_partner[b] = a
-                streak[a, b] = streak[b, a] = 0
-                events.any = True
+    def after_step(self, events: StepEvents) -> None:
+        """Record this step's exchanges in ``events`` (:func:`~cyber_rodent.survival.kernels.mate`
+        on the flags and partners given at construction)."""
+        if self._mate():
+            events.any = True
 
     def ir_geometry(self) -> tuple[np.ndarray, np.ndarray]:
         """Pairwise IR-port geometry: (distance m, angle deg), both (n, n).

@@ -21,7 +21,7 @@ physics in between.
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import mujoco
@@ -140,7 +140,9 @@ class SurvivalWorld:
             np.zeros(n, dtype=bool), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
         )
         self._outcome = EnergyOutcome(np.zeros(n, dtype=np.int64), np.zeros(n, dtype=bool))
-        self._commands = StepCommands(np.zeros((n, 2)), np.zeros(n, dtype=bool), np.zeros(n, bool))
+        self._commands = StepCommands(
+            np.zeros((n, 2)), np.zeros(n, dtype=bool), np.zeros(n, bool), np.zeros(n, bool)
+        )
         self._actuation = Actuation(
             ctrl=self._wheel_controls(),
             led_on=world.led_on,
@@ -161,13 +163,16 @@ class SurvivalWorld:
         self.docking = Docking(
             world, cfg, self._state, self.dock_pack, self._flags, self.events, self.backend
         )
-        self.mating = Mating(world, cfg)
+        self.mating = Mating(
+            world, cfg, self._flags.mate_signal, self.alive, self.docked,
+            self.events.mate_partner, self.backend,
+        )  # fmt: skip
         self._floor_geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, C.FLOOR_GEOM)
-        begin = pick(self.backend, kernels.begin, kernels.begin_reference)
+        self._begin_kernel = pick(self.backend, kernels.begin, kernels.begin_reference)
         end = pick(self.backend, kernels.end, kernels.end_reference)
-        self._begin = bind(
-            begin, self._commands, self._state, self._actuation, self._rules, self._flags
-        )
+        self._begin_own = self._begin = self._bind_begin(self._commands)
+        #: The caller's command arrays that ``_begin`` reads directly (see :meth:`begin_step`).
+        self._callers: tuple[np.ndarray, ...] = ()
         self._end = bind(end, self._state, self._rules, self._flags, self._outcome)
         self._wheel_shape = (n, 2)
         self._flag_shape = (n,)
@@ -294,7 +299,53 @@ class SurvivalWorld:
         mate: np.ndarray,
         continue_recharge: np.ndarray,
     ) -> None:
-        """First half of :meth:`step`: apply decisions and commands (physics not stepped)."""
+        """First half of :meth:`step`: apply decisions and commands (physics not stepped).
+
+        A caller that passes the same arrays every step (the evolution runner) has them read
+        in place; other arguments are checked and copied into the world's own buffers.
+        """
+        callers = self._callers
+        if not (
+            callers
+            and wheels is callers[0]
+            and led is callers[1]
+            and mate is callers[2]
+            and continue_recharge is callers[3]
+        ):
+            self._take_commands(wheels, led, mate, continue_recharge)
+        events = self.events
+        status = self._begin()
+        if status == kernels.RELEASE_FIRST:
+            # "Stop" ends a docked robot's recharge now, before this step.
+            events.clear()
+            stop = self.docked & ~self._begin_commands.continue_recharge
+            for i in np.flatnonzero(stop).tolist():
+                self._release(i, reflex=True)
+                events.record_recharge_end(i, RechargeEnd.DECISION)
+            status = self._begin()
+        else:
+            if status == kernels.BEGIN_OK:
+                events.clear()
+        if status != kernels.BEGIN_OK:  # nothing was written; raise the error that names it
+            _check_wheels(self._begin_commands.wheels)
+        self._mid_step = True
+
+    def _bind_begin(self, commands: StepCommands) -> Callable[[], int]:
+        self._begin_commands = commands
+        return bind(
+            self._begin_kernel, commands, self._state, self._actuation, self._rules, self._flags
+        )
+
+    def _take_commands(
+        self,
+        wheels: np.ndarray,
+        led: np.ndarray,
+        mate: np.ndarray,
+        continue_recharge: np.ndarray,
+    ) -> None:
+        """Check the commands; read them in place if they are the world's kind of arrays,
+        else copy them into the world's own buffers."""
+        raw = (wheels, led, mate, continue_recharge)
         if type(wheels) is not np.ndarray or wheels.dtype != np.float64:
             wheels = np.asarray(wheels, dtype=np.float64)
         if wheels.shape != self._wheel_shape:
@@ -302,27 +353,19 @@ class SurvivalWorld:
         led = self._as_flags("led", led)
         mate = self._as_flags("mate", mate)
         continue_recharge = self._as_flags("continue_recharge", continue_recharge)
-        # Recharge decisions of docked robots: "stop" ends the recharge now, before this step.
-        # An invalid command must change nothing: a step that undocks robots validates first;
-        # otherwise the kernel validates before it writes anything.
-        stop = self.docked & ~continue_recharge
-        events = self.events
-        stopping = bool(stop.any())
-        if stopping:
-            _check_wheels(wheels)
-            events.clear()
-            for i in np.flatnonzero(stop).tolist():
-                self._release(i, reflex=True)
-                events.record_recharge_end(i, RechargeEnd.DECISION)
+        if all(a is b for a, b in zip(raw, (wheels, led, mate, continue_recharge), strict=True)):
+            # Arrays of the right kind: bind the kernel to them (once per set of arrays).
+            self._begin = self._bind_begin(StepCommands(wheels, led, mate, continue_recharge))
+            self._callers = raw
+            return
         commands = self._commands
         np.copyto(commands.wheels, wheels)
         np.copyto(commands.led, led)
         np.copyto(commands.mate, mate)
-        if not self._begin():  # nothing was written; raise the error that names the problem
-            _check_wheels(wheels)
-        if not stopping:
-            events.clear()
-        self._mid_step = True
+        np.copyto(commands.continue_recharge, continue_recharge)
+        self._begin = self._begin_own
+        self._begin_commands = commands
+        self._callers = ()
 
     def end_step(self) -> StepEvents:
         """Second half of :meth:`step`, after the physics has advanced: energy and events."""
@@ -341,7 +384,7 @@ class SurvivalWorld:
             events.any = True
         if self.n_packs and self.world.data.ncon:
             self.docking.detect()
-        self.mating.after_step(self._flags.mate_signal, self.alive, self.docked, events)
+        self.mating.after_step(events)
         self.step_count += 1
         return events
 

@@ -59,7 +59,7 @@ _PACK_SAMPLES = tuple((lat, vert) for vert in (-0.7, 0.96) for lat in (-0.6, 0.0
 _FACE_SAMPLES = tuple((lat, vert) for vert in (-0.6, 0.6) for lat in (-0.6, 0.0, 0.6))
 _LED_SAMPLES = ((-0.6, 0.0), (0.0, 0.0), (0.6, 0.0))
 #: Geom groups that are rendered (mjvOption's default), hence able to hide a target.
-_VISIBLE_GROUPS = np.array([1, 1, 1, 0, 0, 0], dtype=np.uint8)
+VISIBLE_GROUPS = np.array([1, 1, 1, 0, 0, 0], dtype=np.uint8)
 _EDGE_CLIP = 0.5 * math.pi - 1e-3  # rad, keep tan() finite for targets beside the camera
 
 
@@ -184,7 +184,7 @@ class GeometricVision:
             class_targets=class_targets,
             class_count=np.array([len(cols) for cols in per_class], dtype=np.int64),
             exclude_body=np.asarray(self._exclude, dtype=np.int64),
-            geom_groups=_VISIBLE_GROUPS,
+            geom_groups=VISIBLE_GROUPS,
         )
         proj = self.projection
         self.camera = kernels.CameraModel(
@@ -238,7 +238,7 @@ class GeometricVision:
         )  # fmt: skip
         self._front = bind(
             pick(self.backend, kernels.front, kernels.front_reference),
-            self.targets, self.camera, world.led_on, self.front,
+            self.targets, self.camera, world.led_on, self.front, True,
         )  # fmt: skip
         self._nearest = bind(
             pick(self.backend, kernels.nearest, kernels.nearest_reference), self.scene, self.nearest
@@ -298,7 +298,7 @@ class GeometricVision:
                 d,
                 f.cam[i],
                 f.rays[i, idx].ravel(),
-                _VISIBLE_GROUPS,
+                VISIBLE_GROUPS,
                 1,
                 self._exclude[i],
                 self._ray_geom[:k],

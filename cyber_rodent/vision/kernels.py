@@ -11,7 +11,8 @@ it, each written twice with the same signature (``docs/design.md`` §3):
   facing), and the occlusion sample rays with their field-of-view test;
 * :func:`nearest` / :func:`nearest_reference`: gather, front, then each class's candidates
   nearest first, casting MuJoCo's ``mj_ray`` at a candidate's samples only until its visibility
-  is certain (a target is visible iff ``full_area * hits / samples >= min_area``).
+  is certain (a target is visible iff ``full_area * hits / samples >= min_area``). The compiled
+  kernel computes a target's projected size and samples only when the search reaches it.
 
 The compiled kernels call MuJoCo's own ``mj_ray`` through its C entry point (linked by symbol,
 so numba can cache the code); the references call the same C function through ``ctypes``, so
@@ -38,7 +39,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from cyber_rodent.backend import jit
+from cyber_rodent.backend import jit, jit_inline
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 
 Floats = npt.NDArray[np.float64]
@@ -243,19 +244,110 @@ def gather_reference(poses: MujocoPoses, targets: TargetTable, front: FrontBuffe
 
 
 # --- front -------------------------------------------------------------------------------------
-@jit
-def front(targets: TargetTable, camera: CameraModel, led_on: Bools, f: FrontBuffers) -> None:
-    """Fill ``f``'s per-(robot, target) and per-(robot, sample) buffers from its poses.
+@jit_inline
+def _project(
+    targets: TargetTable, camera: CameraModel, f: FrontBuffers, i: int, t: int
+) -> float:
+    """Target ``t``'s lateral axis and projected size in robot ``i``'s camera; its full area.
 
     Projected size: the target's two lateral edges (and, for plates, its front and back faces)
     projected onto the image plane of the view that sees its axis give the width; the far top
     rim to the near bottom rim (cylinders seen from above) or top to bottom edge (plates),
-    clipped to the strip, give the height.
+    clipped to the strip, give the height. Reads ``diff``, ``local``, ``bearing`` and
+    ``distance``, which :func:`front` wrote.
     """
     span = camera.view_span
-    n_views = camera.n_views
     edge_clip = camera.edge_clip
-    view_centres = camera.view_centres
+    r = f.rot[i]
+    g = f.gmat[t]
+    d0, d1 = f.diff[i, t, 0], f.diff[i, t, 1]
+    l0, l1, l2 = f.local[i, t, 0], f.local[i, t, 1], f.local[i, t, 2]
+    b, dist = f.bearing[i, t], f.distance[i, t]
+    if targets.plate[t]:
+        a0, a1, a2 = g[1], g[4], g[7]  # the plate's own width axis
+    else:  # perpendicular to the line of sight
+        rh = max(math.hypot(d0, d1), 1e-9)
+        a0, a1, a2 = -d1 / rh, d0 / rh, 0.0
+    f.lateral[i, t, 0] = a0
+    f.lateral[i, t, 1] = a1
+    f.lateral[i, t, 2] = a2
+    la0 = a0 * r[0] + a1 * r[3] + a2 * r[6]
+    la1 = a0 * r[1] + a1 * r[4] + a2 * r[7]
+    nx, ny, nz = g[0], g[3], g[6]  # the target's x axis (a plate's normal)
+    nl0 = nx * r[0] + ny * r[3] + nz * r[6]
+    nl1 = nx * r[1] + ny * r[4] + nz * r[7]
+    rel = (camera.view_centres[0] - b + 0.5 * span) % _TWO_PI
+    view = min(int(rel // span), camera.n_views - 1)
+    offset = 0.5 * span - (rel - view * span)
+    axis = camera.view_centres[view]
+    hw, hd = targets.half_width[t], targets.half_depth[t]
+    ex, ey = la0 * hw, la1 * hw
+    fx, fy = nl0 * hd, nl1 * hd
+    b_left = math.atan2(ey + l1, ex + l0)
+    b_right = math.atan2(-ey + l1, -ex + l0)
+    b_front = math.atan2(fy + l1, fx + l0)
+    b_back = math.atan2(-fy + l1, -fx + l0)
+    u_left = math.tan(min(max(_wrap_compiled(b_left - axis), -edge_clip), edge_clip))
+    u_right = math.tan(min(max(_wrap_compiled(b_right - axis), -edge_clip), edge_clip))
+    u_front = math.tan(min(max(_wrap_compiled(b_front - axis), -edge_clip), edge_clip))
+    u_back = math.tan(min(max(_wrap_compiled(b_back - axis), -edge_clip), edge_clip))
+    du = abs(u_left - u_right)
+    du += abs(u_front - u_back)
+    cos_off = math.cos(offset)
+    depth_far = max((dist + targets.rim[t]) * cos_off, 1e-9)
+    depth_near = max((dist - targets.rim[t]) * cos_off, 1e-9)
+    vt = (l2 + targets.half_height[t]) / depth_far
+    vb = (l2 - targets.half_height[t]) / depth_near
+    dv = max(min(vt, camera.v_top) - max(vb, camera.v_bottom), 0.0)
+    f.half_angle[i, t] = 0.5 * abs(_wrap_compiled(b_left - b_right))
+    w_px = du * camera.px_per_u
+    h_px = dv * camera.px_per_v
+    f.width_px[i, t] = w_px
+    f.height_px[i, t] = h_px
+    area: float = w_px * h_px
+    f.full_area[i, t] = area
+    return area
+
+
+@jit_inline
+def _sample(targets: TargetTable, camera: CameraModel, f: FrontBuffers, i: int, s: int) -> None:
+    """Robot ``i``'s ray to occlusion sample ``s`` and whether the point is in its view."""
+    span = camera.view_span
+    r = f.rot[i]
+    t = targets.sample_target[s]
+    x = f.diff[i, t, 0] + targets.sample_lateral[s] * f.lateral[i, t, 0]
+    y = f.diff[i, t, 1] + targets.sample_lateral[s] * f.lateral[i, t, 1]
+    z = f.diff[i, t, 2] + targets.sample_lateral[s] * f.lateral[i, t, 2]
+    z += targets.sample_dz[s]
+    f.rays[i, s, 0] = x
+    f.rays[i, s, 1] = y
+    f.rays[i, s, 2] = z
+    c0 = x * r[0] + y * r[3] + z * r[6]
+    c1 = x * r[1] + y * r[4] + z * r[7]
+    c2 = x * r[2] + y * r[5] + z * r[8]
+    rh = max(math.hypot(c0, c1), 1e-9)
+    tan_el = c2 / rh
+    inside = tan_el >= camera.tan_el_min and tan_el <= camera.tan_el_max
+    if not inside:  # near the robot: the exact per-view frustum test
+        rel = (camera.view_centres[0] - math.atan2(c1, c0) + 0.5 * span) % _TWO_PI
+        view = min(int(rel // span), camera.n_views - 1)
+        offset = 0.5 * span - (rel - view * span)
+        v = tan_el / math.cos(offset)
+        inside = v >= camera.v_bottom and v <= camera.v_top
+    f.sample_ok[i, s] = inside
+
+
+@jit
+def front(
+    targets: TargetTable, camera: CameraModel, led_on: Bools, f: FrontBuffers, every_target: bool
+) -> None:
+    """Fill ``f``'s per-(robot, target) and per-(robot, sample) buffers from its poses.
+
+    With ``every_target`` False, only what costs nothing is filled, for :func:`nearest` to
+    compute the rest of the targets it reaches: each target's position (``diff``, ``local``,
+    ``bearing``, ``distance``) and in ``candidate`` whether it could be seen *if it were large
+    enough* (in range, not the robot's own, a lit LED, a plate facing the camera).
+    """
     n = f.cam.shape[0]
     n_t = f.centre.shape[0]
     n_s = targets.sample_target.shape[0]
@@ -268,89 +360,28 @@ def front(targets: TargetTable, camera: CameraModel, led_on: Bools, f: FrontBuff
             f.diff[i, t, 0] = d0
             f.diff[i, t, 1] = d1
             f.diff[i, t, 2] = d2
-            g = f.gmat[t]
-            if targets.plate[t]:
-                a0, a1, a2 = g[1], g[4], g[7]  # the plate's own width axis
-            else:  # perpendicular to the line of sight
-                rh = max(math.hypot(d0, d1), 1e-9)
-                a0, a1, a2 = -d1 / rh, d0 / rh, 0.0
-            f.lateral[i, t, 0] = a0
-            f.lateral[i, t, 1] = a1
-            f.lateral[i, t, 2] = a2
             # Camera frame: x_j = sum_k R_kj d_k.
             l0 = d0 * r[0] + d1 * r[3] + d2 * r[6]
             l1 = d0 * r[1] + d1 * r[4] + d2 * r[7]
-            l2 = d0 * r[2] + d1 * r[5] + d2 * r[8]
             f.local[i, t, 0] = l0
             f.local[i, t, 1] = l1
-            f.local[i, t, 2] = l2
-            la0 = a0 * r[0] + a1 * r[3] + a2 * r[6]
-            la1 = a0 * r[1] + a1 * r[4] + a2 * r[7]
-            nx, ny, nz = g[0], g[3], g[6]  # the target's x axis (a plate's normal)
-            nl0 = nx * r[0] + ny * r[3] + nz * r[6]
-            nl1 = nx * r[1] + ny * r[4] + nz * r[7]
-            b = math.atan2(l1, l0)
+            f.local[i, t, 2] = d0 * r[2] + d1 * r[5] + d2 * r[8]
             dist = math.hypot(l0, l1)
-            f.bearing[i, t] = b
+            f.bearing[i, t] = math.atan2(l1, l0)
             f.distance[i, t] = dist
-            rel = (view_centres[0] - b + 0.5 * span) % _TWO_PI
-            view = min(int(rel // span), n_views - 1)
-            offset = 0.5 * span - (rel - view * span)
-            axis = view_centres[view]
-            hw, hd = targets.half_width[t], targets.half_depth[t]
-            ex, ey = la0 * hw, la1 * hw
-            fx, fy = nl0 * hd, nl1 * hd
-            b_left = math.atan2(ey + l1, ex + l0)
-            b_right = math.atan2(-ey + l1, -ex + l0)
-            b_front = math.atan2(fy + l1, fx + l0)
-            b_back = math.atan2(-fy + l1, -fx + l0)
-            u_left = math.tan(min(max(_wrap_compiled(b_left - axis), -edge_clip), edge_clip))
-            u_right = math.tan(min(max(_wrap_compiled(b_right - axis), -edge_clip), edge_clip))
-            u_front = math.tan(min(max(_wrap_compiled(b_front - axis), -edge_clip), edge_clip))
-            u_back = math.tan(min(max(_wrap_compiled(b_back - axis), -edge_clip), edge_clip))
-            du = abs(u_left - u_right)
-            du += abs(u_front - u_back)
-            cos_off = math.cos(offset)
-            depth_far = max((dist + targets.rim[t]) * cos_off, 1e-9)
-            depth_near = max((dist - targets.rim[t]) * cos_off, 1e-9)
-            vt = (l2 + targets.half_height[t]) / depth_far
-            vb = (l2 - targets.half_height[t]) / depth_near
-            dv = max(min(vt, camera.v_top) - max(vb, camera.v_bottom), 0.0)
-            f.half_angle[i, t] = 0.5 * abs(_wrap_compiled(b_left - b_right))
-            w_px = du * camera.px_per_u
-            h_px = dv * camera.px_per_v
-            f.width_px[i, t] = w_px
-            f.height_px[i, t] = h_px
-            area = w_px * h_px
-            f.full_area[i, t] = area
-            ok = area >= targets.min_area[t] and dist <= camera.max_range and not targets.own[i, t]
+            ok = dist <= camera.max_range and not targets.own[i, t]
             if t < n and not led_on[t]:
                 ok = False  # a dark LED is not a green target
             if ok and targets.plate[t]:  # a plate shows only its front
-                ok = d0 * nx + d1 * ny + d2 * nz < 0.0
+                g = f.gmat[t]  # its x axis is the plate's normal
+                ok = d0 * g[0] + d1 * g[3] + d2 * g[6] < 0.0
+            if every_target:
+                area = _project(targets, camera, f, i, t)
+                ok = ok and area >= targets.min_area[t]
             f.candidate[i, t] = ok
-        for s in range(n_s):
-            t = targets.sample_target[s]
-            x = f.diff[i, t, 0] + targets.sample_lateral[s] * f.lateral[i, t, 0]
-            y = f.diff[i, t, 1] + targets.sample_lateral[s] * f.lateral[i, t, 1]
-            z = f.diff[i, t, 2] + targets.sample_lateral[s] * f.lateral[i, t, 2]
-            z += targets.sample_dz[s]
-            f.rays[i, s, 0] = x
-            f.rays[i, s, 1] = y
-            f.rays[i, s, 2] = z
-            c0 = x * r[0] + y * r[3] + z * r[6]
-            c1 = x * r[1] + y * r[4] + z * r[7]
-            c2 = x * r[2] + y * r[5] + z * r[8]
-            rh = max(math.hypot(c0, c1), 1e-9)
-            tan_el = c2 / rh
-            inside = tan_el >= camera.tan_el_min and tan_el <= camera.tan_el_max
-            if not inside:  # near the robot: the exact per-view frustum test
-                rel = (view_centres[0] - math.atan2(c1, c0) + 0.5 * span) % _TWO_PI
-                view = min(int(rel // span), n_views - 1)
-                offset = 0.5 * span - (rel - view * span)
-                v = tan_el / math.cos(offset)
-                inside = v >= camera.v_bottom and v <= camera.v_top
-            f.sample_ok[i, s] = inside
+        if every_target:
+            for s in range(n_s):
+                _sample(targets, camera, f, i, s)
 
 
 def _view_offset(camera: CameraModel, bearing: Floats) -> tuple[Ints, Floats]:
@@ -362,9 +393,9 @@ def _view_offset(camera: CameraModel, bearing: Floats) -> tuple[Ints, Floats]:
 
 
 def front_reference(
-    targets: TargetTable, camera: CameraModel, led_on: Bools, f: FrontBuffers
+    targets: TargetTable, camera: CameraModel, led_on: Bools, f: FrontBuffers, every_target: bool
 ) -> None:
-    """:func:`front` in vectorised numpy."""
+    """:func:`front` in vectorised numpy (it fills every target whatever ``every_target``)."""
     n = f.cam.shape[0]
     rot = f.rot.reshape(n, 3, 3)
     gmat = f.gmat.reshape(-1, 3, 3)
@@ -446,13 +477,18 @@ def front_reference(
 
 
 # --- nearest -----------------------------------------------------------------------------------
-@jit
+@jit_inline
 def nearest(scene: GeometricScene, out: NearestTargets) -> None:
-    """:func:`gather`, :func:`front`, then each robot's nearest visible target of each class,
-    casting occlusion rays lazily (nearest candidate first, stop once certain)."""
+    """:func:`gather`, :func:`front`, then each robot's nearest visible target of each class.
+
+    Each class's possible targets are tried nearest first (ties to the lower index); a target's
+    projected size, then its samples, then its occlusion rays are computed only when it is
+    reached, and the rays stop as soon as its visibility is certain either way.
+    """
     poses, targets, f = scene.poses, scene.targets, scene.front
+    camera = scene.camera
     gather(poses, targets, f)
-    front(targets, scene.camera, scene.led_on, f)
+    front(targets, camera, scene.led_on, f, False)
     n = f.cam.shape[0]
     n_s = f.rays.shape[1]
     # mj_ray reads 3 doubles at each point/direction address. Addresses are signed 64-bit:
@@ -469,7 +505,7 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
             out.visible[i, c] = False
             out.distance[i, c] = np.inf
             out.bearing[i, c] = 0.0
-            # This class's candidates, nearest first (stable: ties to the lower index).
+            # This class's possible targets, nearest first (stable: ties to the lower index).
             k = 0
             for j in range(targets.class_count[c]):
                 t = targets.class_targets[c, j]
@@ -483,10 +519,15 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
                 k += 1
             for j in range(k):
                 t = order[j]
-                full, need, step = f.full_area[i, t], targets.min_area[t], targets.inv_samples[t]
+                full, need = _project(targets, camera, f, i, t), targets.min_area[t]
+                if not full >= need:  # too small to be seen even in full
+                    f.candidate[i, t] = False
+                    continue
+                step = targets.inv_samples[t]
                 first, end = targets.sample_start[t], targets.sample_end[t]
                 left = 0
                 for s in range(first, end):
+                    _sample(targets, camera, f, i, s)
                     left += f.sample_ok[i, s]
                 hits = 0
                 seen = full * (hits * step) >= need
@@ -515,7 +556,7 @@ def nearest_reference(scene: GeometricScene, out: NearestTargets) -> None:
     """:func:`nearest` in numpy and Python, with the same lazy ray order."""
     poses, targets, f = scene.poses, scene.targets, scene.front
     gather_reference(poses, targets, f)
-    front_reference(targets, scene.camera, scene.led_on, f)
+    front_reference(targets, scene.camera, scene.led_on, f, False)
     n, n_t = f.candidate.shape
     n_s = f.rays.shape[1]
     masked = np.full((n, n_t + 1), np.inf)  # one padding column, never a candidate

@@ -20,11 +20,12 @@ What the real CR's vision does, on the simulated image:
    by the frame or hidden behind something (its estimate is farther than the top edge's by more
    than the pixel quantisation allows), the top edge alone is used.
 
-The segmenter's ``backend`` chooses how steps 1–3 and the pixel statistics of step 4 run:
-``"numpy"`` (cvtColor, inRange, connectedComponents, numpy; the reference) or ``"numba"``
-(:mod:`cyber_rodent.vision.segmentation_kernels`: an OpenCV-built colour look-up table and one
-compiled labelling pass, tested to give the same detections, bit for bit). Step 4's distances
-are shared.
+Steps 1–3 and the pixel statistics of step 4 run in :mod:`.segmentation_kernels`: an
+OpenCV-built colour look-up table (a pixel's classes are exactly OpenCV's cvtColor + inRange
+ones), a labelling pass over all robots' strips and the pack grouping's pair test. The
+segmenter's ``backend`` picks the compiled kernels (``"numba"``) or their numpy references
+(``"numpy"``), which give the same detections, bit for bit; the tests also compare them with
+OpenCV's connected components. Step 4's distances are shared.
 """
 
 from __future__ import annotations
@@ -69,12 +70,13 @@ class OmniSegmenter:
     Args:
         config: the camera (thresholds, resolution, field of view, minimum blob area).
         geometry: camera height and target shapes (from :func:`target_geometry`).
-        backend: ``"numba"`` (the compiled labelling) or ``"numpy"`` (OpenCV and numpy, the
-            reference); see the module docstring.
+        backend: ``"numba"`` (the compiled kernels) or ``"numpy"`` (their numpy references);
+            see the module docstring.
 
     Attributes:
-        labeller: the compiled labelling's buffers (``backend="numba"``; made by the first
-            :meth:`detect`, remade when the strips' shape changes).
+        table: the classes' colour look-up table (:func:`~.segmentation_kernels.class_lut`).
+        labeller: the labelling's buffers (made by the first :meth:`detect`, remade when the
+            strips' shape changes).
 
     Raises:
         ValueError: for an unknown backend.
@@ -88,13 +90,10 @@ class OmniSegmenter:
         self.geometry = geometry
         self.projection = OmniProjection(config)
         self._bounds = [_hsv_bounds(t) for t in config.thresholds]
-        self._cos_col = np.cos(self.projection.column_bearing)
-        self._sin_col = np.sin(self.projection.column_bearing)
         self._join_stacked = pick(
             self.backend, kernels.join_stacked, kernels.join_stacked_reference
         )
-        self._detect = pick(self.backend, self._detect_labelled, self._detect_opencv)
-        self._table = kernels.class_lut(self._bounds) if self.backend == "numba" else None
+        self.table = kernels.class_lut(self._bounds)
         self.labeller: Labeller | None = None
 
     # ------------------------------------------------------------------------------------
@@ -128,29 +127,19 @@ class OmniSegmenter:
             (n_robots, height, strip_width) uint8 whose bit ``c`` marks class ``c``'s pixels
             (:meth:`masks_from_classes` expands it; it may be overwritten by the next call).
         """
-        return self._detect(strips)
-
-    def _detect_opencv(self, strips: np.ndarray) -> tuple[np.ndarray, ...]:
-        """:meth:`detect` with OpenCV's masks and connected components (the reference)."""
         n, h, w, _ = strips.shape
-        masks = self.masks(strips.reshape(n * h, w, 3)).reshape(N_CLASSES, n, h, w)
-        out: list[list[np.ndarray]] = [[], [], [], [], []]
-        for i in range(n):
-            for c in range(N_CLASSES):
-                mask = masks[c, i]
-                if not cv2.countNonZero(mask):
-                    continue
-                bearing, distance, area = self.measure_blobs(mask, c)
-                keep = (area >= self.config.min_blob_area[c]) & (distance <= self.config.max_range)
-                k = int(keep.sum())
-                out[0].append(np.full(k, i))
-                out[1].append(np.full(k, c))
-                out[2].append(bearing[keep])
-                out[3].append(distance[keep])
-                out[4].append(area[keep])
-        classes = np.zeros((n, h, w), dtype=np.uint8)
-        for c in range(N_CLASSES):
-            classes |= (masks[c] > 0).astype(np.uint8) << c
+        rgb = np.ascontiguousarray(strips.reshape(n * h, w, 3))
+        lab = self.labeller
+        if lab is None or lab.strip.bits.shape != (n * h, w):
+            lab = self.labeller = self._labeller(n * h, w, h, self.table)
+        blobs = self._measure(lab, rgb, n, h)
+        classes = lab.strip.bits.reshape(n, h, w)
+        if blobs is None:
+            return _flat_detections([[]], classes)
+        robot, cls, bearing, distance, area = blobs
+        min_area = np.asarray(self.config.min_blob_area, dtype=float)[cls]
+        keep = (area >= min_area) & (distance <= self.config.max_range)
+        out = [[robot[keep]], [cls[keep]], [bearing[keep]], [distance[keep]], [area[keep]]]
         return _flat_detections(out, classes)
 
     @staticmethod
@@ -158,16 +147,18 @@ class OmniSegmenter:
         """(3, …) uint8 0/255 masks, class order LED, FACE, BATTERY, from a class-bit image."""
         return np.stack([((classes >> c) & 1) * np.uint8(255) for c in range(N_CLASSES)])
 
-    def _detect_labelled(self, strips: np.ndarray) -> tuple[np.ndarray, ...]:
-        """:meth:`detect` with the compiled labelling (:mod:`.segmentation_kernels`)."""
-        n, h, w, _ = strips.shape
-        rgb = np.ascontiguousarray(strips.reshape(n * h, w, 3))
-        lab = self.labeller
-        if lab is None or lab.strip.bits.shape != (n * h, w):
-            assert self._table is not None
-            lab = self.labeller = Labeller(
-                n * h, w, h, N_CLASSES, self.projection.column_bearing, self._table
-            )
+    def _labeller(self, rows: int, width: int, height: int, table: kernels.ClassTable) -> Labeller:
+        """Labelling buffers for ``rows`` stacked rows of strips of ``height`` rows."""
+        return Labeller(
+            rows, width, height, N_CLASSES, self.projection.column_bearing, table, self.backend
+        )
+
+    def _measure(
+        self, lab: Labeller, rgb: np.ndarray, n: int, h: int
+    ) -> tuple[np.ndarray, ...] | None:
+        """Robot, class, bearing, distance and area of every target in ``n`` stacked strips of
+        ``h`` rows (a pack's two bands grouped), before the area and range limits; None if
+        there is none."""
         blobs = lab.label(rgb)
         robot, cls = blobs.robot, blobs.cls
         area, sin_sum, cos_sum = blobs.area, blobs.sin_sum, blobs.cos_sum
@@ -199,7 +190,7 @@ class OmniSegmenter:
                 out[2 + j].append(v)
             start = stop
         if not out[0]:
-            return _flat_detections([[]], lab.strip.bits.reshape(n, h, w))
+            return None
         robot, cls, area, sin_sum, cos_sum, top, bottom = (np.concatenate(v) for v in out)
         bearing = np.arctan2(sin_sum, cos_sum)
         distance = np.empty(len(robot))
@@ -209,54 +200,25 @@ class OmniSegmenter:
                 distance[sel] = self.distance_from_edges(
                     c, bearing[sel], top[sel].astype(float), bottom[sel].astype(float) + 1.0
                 )
-        min_area = np.asarray(self.config.min_blob_area, dtype=float)[cls]
-        keep = (area >= min_area) & (distance <= self.config.max_range)
-        out = [[robot[keep]], [cls[keep]], [bearing[keep]], [distance[keep]], [area[keep]]]
-        return _flat_detections(out, lab.strip.bits.reshape(n, h, w))
+        return robot, cls, bearing, distance, area
 
     # ------------------------------------------------------------------------------------
     def measure_blobs(self, mask: np.ndarray, cls: int) -> tuple[np.ndarray, ...]:
-        """Bearing (rad), distance (m) and pixel area of every blob of one class in one strip.
+        """Bearing (rad), distance (m) and pixel area of every blob of one class in one strip,
+        whatever its area and range (a pack's two bands grouped into one).
 
         Args:
             mask: (height, strip_width) uint8, nonzero where the class's colour is.
             cls: the colour class (selects the target shape for the distance estimate).
         """
-        n_labels, labels = cv2.connectedComponents(mask, connectivity=8, ltype=cv2.CV_32S)
-        parent = np.arange(n_labels)
-        _join_wrapped(labels, parent)
-        points = cv2.findNonZero(mask).reshape(-1, 2)  # x, y; much faster than np.nonzero
-        cols = points[:, 0].astype(np.intp)
-        rows = points[:, 1].astype(np.intp)
-        root = _roots(parent)[labels[rows, cols]]
-        groups, group = np.unique(root, return_inverse=True)
-        n_groups = len(groups)
-        # Blobs in the raster order of their first pixel (OpenCV's label order depends on its
-        # block-based scan; the compiled backend gives this order too).
-        first = np.full(n_groups, mask.size, dtype=np.int64)
-        np.minimum.at(first, group, rows * mask.shape[1] + cols)
-        rank = np.empty(n_groups, dtype=np.intp)
-        rank[np.argsort(first)] = np.arange(n_groups)
-        group = rank[group]
-        area = np.bincount(group, minlength=n_groups).astype(float)
-        sin_sum = np.bincount(group, weights=self._sin_col[cols], minlength=n_groups)
-        cos_sum = np.bincount(group, weights=self._cos_col[cols], minlength=n_groups)
-        top = np.full(n_groups, mask.shape[0], dtype=np.int64)
-        bottom = np.full(n_groups, -1, dtype=np.int64)
-        np.minimum.at(top, group, rows)
-        np.maximum.at(bottom, group, rows)
-        bearing = np.arctan2(sin_sum, cos_sum)
-        if cls == BATTERY and n_groups > 1:
-            lo, hi = self._angular_extent(group, cols, bearing)
-            merged = self._group_stacked(bearing, lo, hi, top, bottom)
-            if merged is not None:
-                area, sin_sum, cos_sum, top, bottom = _merge_groups(
-                    merged, area, sin_sum, cos_sum, top, bottom, mask.shape[0]
-                )
-                bearing = np.arctan2(sin_sum, cos_sum)
-        distance = self.distance_from_edges(
-            cls, bearing, top.astype(float), bottom.astype(float) + 1.0
-        )
+        height, width = mask.shape
+        rgb = np.zeros((height, width, 3), dtype=np.uint8)
+        rgb[..., 2] = np.where(mask > 0, 1 << cls, 0)
+        lab = self._labeller(height, width, height, kernels.identity_table(N_CLASSES))
+        blobs = self._measure(lab, rgb, 1, height)
+        if blobs is None:
+            return np.zeros(0), np.zeros(0), np.zeros(0)
+        _, _, bearing, distance, area = blobs
         return bearing, distance, area
 
     def distance_from_edges(
@@ -290,20 +252,6 @@ class OmniSegmenter:
         d = np.where(bottom_ok, both, d_top)
         d = np.where(np.isfinite(d), d, np.inf)
         return np.maximum(d, 0.0)
-
-    def _angular_extent(
-        self, group: np.ndarray, cols: np.ndarray, bearing: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Each group's bearing interval relative to its mean bearing (rad): (low, high),
-        pixel edges included (low < 0 < high)."""
-        dev = np.angle(np.exp(1j * (bearing[group] - self.projection.column_bearing[cols])))
-        # dev > 0: the pixel is to the right of (at a smaller bearing than) the mean.
-        half_px = 0.5 * (2.0 * math.pi / self.config.strip_width)
-        lo = np.zeros(len(bearing))
-        hi = np.zeros(len(bearing))
-        np.maximum.at(lo, group, dev)
-        np.maximum.at(hi, group, -dev)
-        return -(lo + half_px), hi + half_px
 
     def _group_stacked(
         self,
@@ -388,29 +336,6 @@ def _roots(parent: np.ndarray) -> np.ndarray:
         root = nxt
 
 
-def _union(parent: np.ndarray, a: int, b: int) -> None:
-    ra, rb = int(parent[a]), int(parent[b])
-    while parent[ra] != ra:
-        ra = int(parent[ra])
-    while parent[rb] != rb:
-        rb = int(parent[rb])
-    if ra != rb:
-        parent[max(ra, rb)] = min(ra, rb)
-
-
-def _join_wrapped(labels: np.ndarray, parent: np.ndarray) -> None:
-    """Join components that touch across the strip's left/right seam (8-connectivity)."""
-    left, right = labels[:, 0], labels[:, -1]
-    if not (left.any() and right.any()):
-        return
-    for dr in (-1, 0, 1):
-        a = left[max(dr, 0) : len(left) + min(dr, 0)]
-        b = right[max(-dr, 0) : len(right) + min(-dr, 0)]
-        both = (a > 0) & (b > 0)
-        for la, lb in set(zip(a[both].tolist(), b[both].tolist(), strict=True)):
-            _union(parent, la, lb)
-
-
 class Blobs(NamedTuple):
     """Per component of a :meth:`Labeller.label` call (ordered by robot, then in each robot by
     first pixel in raster order)."""
@@ -425,7 +350,8 @@ class Blobs(NamedTuple):
 
 
 class Labeller:
-    """The compiled labelling's buffers for strips of one shape, and its bound kernels.
+    """The labelling's buffers for strips of one shape, and its kernels (bound where they can
+    be).
 
     The run buffers start small and grow to the worst case (a checkerboard) the first time a
     frame overflows them.
@@ -436,6 +362,7 @@ class Labeller:
         n_classes: colour classes (bits of the look-up table).
         column_bearing: (width,) rad, each column's bearing.
         table: the classes' look-up table (:func:`~.segmentation_kernels.class_lut`).
+        backend: the compiled kernels (``"numba"``) or their numpy references (``"numpy"``).
     """
 
     def __init__(
@@ -446,8 +373,11 @@ class Labeller:
         n_classes: int,
         column_bearing: np.ndarray,
         table: kernels.ClassTable,
+        backend: Backend = DEFAULT_BACKEND,
     ):
         self.table = table
+        self._label = pick(backend, kernels.label, kernels.label_reference)
+        self._extents_kernel = pick(backend, kernels.extents, kernels.extents_reference)
         bearing = np.ascontiguousarray(column_bearing, dtype=np.float64)
         self.strip = kernels.StripBuffers(
             height=height,
@@ -481,7 +411,7 @@ class Labeller:
             lo=np.empty(capacity, dtype=np.float64),
             hi=np.empty(capacity, dtype=np.float64),
         )
-        self._extents = bind(kernels.extents, self.runs, self.strip, self.extent_buffers)
+        self._extents = bind(self._extents_kernel, self.runs, self.strip, self.extent_buffers)
 
     def label(self, rgb: np.ndarray) -> Blobs:
         """Connected class blobs of stacked omni strips, with their pixel statistics.
@@ -492,7 +422,7 @@ class Labeller:
         # The image is an argument, not a bound buffer: MuJoCo's renderer returns a new array
         # every frame, and rebinding costs more than numba's dispatch on these named buffers.
         while True:
-            n, k = kernels.label(rgb, self.table, self.strip, self.runs)
+            n, k = self._label(rgb, self.table, self.strip, self.runs)
             if n >= 0:
                 break
             self._allocate(self.worst)

@@ -1,27 +1,30 @@
-"""Compiled colour segmentation: a class look-up table, run-based blob labelling, pack grouping.
+"""Colour segmentation kernels: a class look-up table, run-based blob labelling, pack grouping.
 
-The OpenCV path of :class:`~cyber_rodent.vision.segmentation.OmniSegmenter` (``backend=
-"numpy"``, the reference) converts the whole stacked image to HSV, thresholds it per class and
-then, per robot and class, labels connected components and gathers pixel statistics with a
-dozen numpy calls; almost all of that work is spent on pixels that belong to no class. The
-compiled path (``backend="numba"``) does the same segmentation in two steps:
+Segmenting with OpenCV (convert the whole stacked image to HSV, threshold it per class, then per
+robot and class label connected components and gather pixel statistics) spends almost all its
+work on pixels that belong to no class. These kernels do the same segmentation in two steps:
 
 * :func:`class_lut`: a table over all 2²⁴ RGB colours whose bit ``c`` says "this colour is in
   class ``c``'s HSV box". It is computed once per threshold set *with OpenCV's own*
   ``cvtColor`` and ``inRange``, so a pixel's classes are exactly those of
-  ``OmniSegmenter.masks`` (tested), whatever OpenCV's rounding.
+  ``OmniSegmenter.masks`` (tested), whatever OpenCV's rounding. :func:`identity_table` is the
+  table of images that already hold class bits (a segmenter measuring given masks).
 * :func:`label`: one compiled pass over the stacked strips. Each row is classified through the
   table and cut into runs of same-class pixels; runs are joined with 8-connectivity to runs of
   the row above and across the strip's left/right seam (union-find, roots = earliest run, so
   components come in raster order); then every component's pixel statistics are accumulated in
-  the order numpy's ``bincount`` uses on OpenCV's ``findNonZero`` list, so the sums are
-  bit-identical to the reference. :func:`extents` then gives the bearing interval of each
+  each component's raster order (pixels row by row, left to right), the order in which
+  ``bincount`` sums a ``findNonZero`` or ``np.nonzero`` list, so the sums are bit-identical to
+  those of a pixel list. :func:`extents` then gives the bearing interval of each
   component of one class (a pack's two bands are grouped by it).
 
-The labelling has no numpy twin of the same signature: its reference is the OpenCV path as a
-whole, which the tests compare detection by detection. The pack grouping's pair test is
-written twice, :func:`join_stacked` and :func:`join_stacked_reference` (same signature, same
-decisions), one for each backend.
+Each kernel has a numpy reference with the same signature, written independently:
+:func:`label_reference` (the table by fancy indexing, runs from ``np.diff``, runs joined where
+their pixels touch and the components found by label propagation, the sums by ``bincount``),
+:func:`extents_reference` and :func:`join_stacked_reference`; the segmenter picks one of each
+pair by its ``backend`` (``tests/test_kernel_parity.py`` compares them buffer by buffer, and
+``tests/test_vision_segmentation_kernel.py`` compares the detections with OpenCV's connected
+components).
 
 The kernels read and write named buffers owned by
 :class:`~cyber_rodent.vision.segmentation.Labeller`: :class:`ClassTable`, :class:`StripBuffers`,
@@ -129,6 +132,25 @@ def class_lut(bounds: list[HsvBounds]) -> ClassTable:
     return table
 
 
+_IDENTITY: dict[int, ClassTable] = {}
+
+
+def identity_table(n_classes: int) -> ClassTable:
+    """The table of images whose blue channel already holds class bits: colour ``(0, 0, b)``
+    is in the classes of the bits of ``b`` (``b < 2**n_classes``), every other colour in none.
+
+    It lets the labelling measure given class masks (``OmniSegmenter.measure_blobs``). Cached
+    per number of classes.
+    """
+    cached = _IDENTITY.get(n_classes)
+    if cached is None:
+        lut = np.zeros(1 << 24, dtype=np.uint8)
+        lut[: 1 << n_classes] = np.arange(1 << n_classes, dtype=np.uint8)
+        lut.setflags(write=False)
+        cached = _IDENTITY[n_classes] = ClassTable(lut, 1)
+    return cached
+
+
 @jit
 def _find(parent: Ints, a: int) -> int:
     root = a
@@ -160,8 +182,12 @@ def label(rgb: Bytes, table: ClassTable, strip: StripBuffers, runs: Runs) -> tup
 
     Returns:
         (runs, components), or (-1, 0) when the run buffers are full (the caller retries with
-        room for the worst case). Components come ordered by robot, then in each robot by
-        first pixel in raster order, in ``runs.comp_stats`` and ``runs.comp_ints``.
+        room for the worst case; the buffers then hold no result). Components come ordered by
+        robot, then in each robot by first pixel in raster order, in ``runs.comp_stats`` and
+        ``runs.comp_ints``; runs by row, class, then column, each with its root run (its
+        component's earliest) in ``runs.parent`` and its component in ``runs.comp``;
+        ``strip.edge_left``/``edge_right`` hold the run of each row and class touching the
+        strip's left/right edge, or -1.
     """
     lut, min_chroma = table
     height, n_classes, bits = strip.height, strip.n_classes, strip.bits
@@ -247,7 +273,7 @@ def label(rgb: Bytes, table: ClassTable, strip: StripBuffers, runs: Runs) -> tup
             k += 1
         parent[i] = root
         run_comp[i] = comp_of_root[root]
-    # Pixel sums per component in the reference's order: per robot and class, pixels row by row,
+    # Pixel sums per component in raster order: per robot and class, pixels row by row,
     # left to right (OpenCV's findNonZero), i.e. runs by (robot, class, row, column).
     order = np.argsort(run_cls[:n] * rows + run_row[:n], kind="mergesort")
     for j in range(n):
@@ -265,10 +291,117 @@ def label(rgb: Bytes, table: ClassTable, strip: StripBuffers, runs: Runs) -> tup
     return n, k
 
 
+def label_reference(
+    rgb: Bytes, table: ClassTable, strip: StripBuffers, runs: Runs
+) -> tuple[int, int]:
+    """:func:`label` in numpy: the same buffers filled with the same values.
+
+    Classes by indexing the table with every pixel's colour; per class, runs where ``np.diff``
+    of a row's membership rises and falls, numbered in :func:`label`'s order (row, class,
+    column); pairs of runs whose pixels touch (8-connectivity: the row below within a strip,
+    and across the seam), joined by label propagation until every run carries its component's
+    smallest run; the pixel sums by ``bincount`` over the pixels in run order, which is each
+    component's raster order.
+    """
+    rows, width = rgb.shape[0], rgb.shape[1]
+    height, n_classes = strip.height, strip.n_classes
+    colour = rgb.astype(np.int64)
+    # The table's min_chroma only lets the kernel skip greys: the table puts them in no class.
+    bits = table.lut[(colour[..., 0] << 16) | (colour[..., 1] << 8) | colour[..., 2]]
+    strip.bits[:] = bits
+
+    # Runs per class, in raster order within the class.
+    member = [((bits >> c) & 1).astype(np.int8) for c in range(n_classes)]
+    found = []
+    for c in range(n_classes):
+        step = np.diff(member[c], axis=1, prepend=0, append=0)  # +1 at a start, -1 past an end
+        row, first = np.nonzero(step == 1)
+        _, past = np.nonzero(step == -1)
+        found.append((row, first, past - 1, np.full(len(row), c, dtype=np.int64)))
+    run_row, run_c0, run_c1, run_cls = (np.concatenate(parts) for parts in zip(*found, strict=True))
+    n = len(run_row)
+    if n > len(runs.row):
+        return -1, 0
+    order = np.lexsort((run_c0, run_cls, run_row))  # the kernel's numbering
+    number = np.empty(n, dtype=np.int64)
+    number[order] = np.arange(n)  # run number of the j-th run found (class by class)
+    run_row, run_c0, run_c1, run_cls = run_row[order], run_c0[order], run_c1[order], run_cls[order]
+    runs.row[:n], runs.c0[:n], runs.c1[:n], runs.cls[:n] = run_row, run_c0, run_c1, run_cls
+    strip.edge_left[:] = -1
+    strip.edge_right[:] = -1
+    at_left, at_right = run_c0 == 0, run_c1 == width - 1
+    strip.edge_left[run_row[at_left], run_cls[at_left]] = np.flatnonzero(at_left)
+    strip.edge_right[run_row[at_right], run_cls[at_right]] = np.flatnonzero(at_right)
+
+    # Touching runs: a pixel and its three neighbours in the next row of the same strip, and a
+    # first-column pixel and the last-column pixels of its own and the adjacent rows.
+    below = (np.arange(1, rows) % height != 0)[:, None]  # the next row is in the same strip
+    same_strip = np.arange(rows) // height
+    first_of_class = 0
+    touching = []
+    for c in range(n_classes):
+        inside = member[c] > 0
+        run_of = np.full((rows, width), -1, dtype=np.int64)
+        starts = np.diff(member[c], axis=1, prepend=0) == 1
+        ordinal = np.cumsum(starts.ravel()).reshape(rows, width) - 1 + first_of_class
+        run_of[inside] = number[ordinal[inside]]
+        first_of_class += int(starts.sum())
+        upper, lower = run_of[:-1], run_of[1:]
+        for a, b in (
+            (upper[:, 1:], lower[:, :-1]),  # down and left
+            (upper, lower),  # straight down
+            (upper[:, :-1], lower[:, 1:]),  # down and right
+        ):
+            both = (a >= 0) & (b >= 0) & below
+            touching.append((a[both], b[both]))
+        left, right = run_of[:, 0], run_of[:, -1]
+        for shift in (-1, 0, 1):
+            r = np.arange(max(0, -shift), min(rows, rows - shift))
+            a, b = left[r], right[r + shift]
+            both = (a >= 0) & (b >= 0) & (same_strip[r] == same_strip[r + shift])
+            touching.append((a[both], b[both]))
+    ends = np.concatenate([a for a, _ in touching]), np.concatenate([b for _, b in touching])
+    pair = np.unique(ends[0] * n + ends[1]) if n else np.zeros(0, dtype=np.int64)
+    a, b = pair // max(n, 1), pair % max(n, 1)
+    root = np.arange(n)
+    while True:
+        while not np.array_equal(root[root], root):
+            root = root[root]
+        ra, rb = root[a], root[b]
+        if np.array_equal(ra, rb):
+            break
+        low = np.minimum(ra, rb)
+        np.minimum.at(root, ra, low)  # hook both roots under the smaller
+        np.minimum.at(root, rb, low)
+    runs.parent[:n] = root
+
+    # Components in the order of their smallest run; their statistics.
+    first_run = np.flatnonzero(root == np.arange(n))
+    k = len(first_run)
+    comp = np.searchsorted(first_run, root)
+    runs.comp[:n] = comp
+    in_strip = run_row % height
+    top = np.full(k, height, dtype=np.int64)
+    bottom = np.full(k, -1, dtype=np.int64)
+    np.minimum.at(top, comp, in_strip)
+    np.maximum.at(bottom, comp, in_strip)
+    runs.comp_ints[:k] = np.stack(
+        [run_row[first_run] // height, run_cls[first_run], top, bottom], axis=1
+    )
+    length = run_c1 - run_c0 + 1
+    pixel_comp = np.repeat(comp, length)
+    start = np.cumsum(length) - length  # each run's first pixel in the list of pixels
+    pixel_col = np.arange(int(length.sum())) - np.repeat(start - run_c0, length)
+    runs.comp_stats[:k, 0] = np.bincount(pixel_comp, minlength=k)
+    runs.comp_stats[:k, 1] = np.bincount(pixel_comp, weights=strip.sin_col[pixel_col], minlength=k)
+    runs.comp_stats[:k, 2] = np.bincount(pixel_comp, weights=strip.cos_col[pixel_col], minlength=k)
+    return n, k
+
+
 @jit
 def extents(runs: Runs, strip: StripBuffers, ext: Extents) -> None:
     """The bearing interval relative to its mean of each component of class ``ext.counts[2]``
-    (as the reference's ``OmniSegmenter._angular_extent``): the largest deviation of any of its
+    (``OmniSegmenter`` groups a pack's two bands by it): the largest deviation of any of its
     pixels to either side, plus half a pixel; other components get half a pixel either side.
 
     Within a run the columns' bearings fall steadily (a run never crosses the strip's seam, and
@@ -295,6 +428,32 @@ def extents(runs: Runs, strip: StripBuffers, ext: Extents) -> None:
     for g in range(k):
         lo[g] = -(lo[g] + half_px)
         hi[g] = hi[g] + half_px
+
+
+#: An angle wrapped to [-π, π] as ``atan2(sin, cos)`` of the C library (elementwise).
+_wrap = np.vectorize(lambda d: math.atan2(math.sin(d), math.cos(d)), otypes=[np.float64])
+
+
+def extents_reference(runs: Runs, strip: StripBuffers, ext: Extents) -> None:
+    """:func:`extents` in numpy: the deviations of every run's two end pixels at once.
+
+    The end pixels are the ones the rule needs (see :func:`extents`); evaluating exactly them
+    keeps the two equal on any strip, a blob wider than half the circle included. The
+    deviation is wrapped with the C library's ``atan2`` (as the compiled kernel's), since
+    numpy's vectorised ``arctan2`` may round the last bit differently.
+    """
+    n, k, cls = (int(v) for v in ext.counts)
+    mine = np.flatnonzero(runs.cls[:n] == cls)
+    comp = np.concatenate([runs.comp[mine], runs.comp[mine]])
+    column = np.concatenate([runs.c0[mine], runs.c1[mine]])
+    dev = _wrap(ext.bearing[comp] - strip.column_bearing[column])
+    # dev > 0: the pixel is to the right of (at a smaller bearing than) the mean.
+    right = np.zeros(k)
+    left = np.zeros(k)
+    np.maximum.at(right, comp, dev)
+    np.maximum.at(left, comp, -dev)
+    ext.lo[:k] = -(right + strip.half_px)
+    ext.hi[:k] = left + strip.half_px
 
 
 @jit

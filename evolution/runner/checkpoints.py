@@ -144,6 +144,7 @@ def restore_runner(runner: EvolutionRunner, state: dict[str, Any]) -> None:
     """
     restore_world(state["world"], runner.survival, runner.vision)
     runner.scheduler.load_state(state["scheduler"])
+    runner.remember_docked_agents()
     runner.events.load_state(state["events"])
     runner.steps = int(state["steps"])
     runner.generation_steps = [int(step) for step in state["generation_steps"]]

@@ -250,16 +250,11 @@ class EvolutionRunner:
         self.steps += 1
         if events.any:
             self._log_world_events(events)
-        if self.survival.docked.any():  # who is recharging, should the agent be switched out
-            np.copyto(self._docked_slot, self.scheduler.active_slot)
-            self._docked_generation[:] = self.scheduler.slot_generation[
-                self._robots, self._docked_slot
-            ]
         # schedule: ageing, time sharing, matings, deaths, offspring
         switched = self.scheduler.on_step(
             self.survival.energy, events.died, events.docked, events.mate_partner
         )
-        if not switched.any():
+        if not np.count_nonzero(switched):
             return False
         self._load_switched(switched)
         if self.scheduler.birth_log:
@@ -276,6 +271,16 @@ class EvolutionRunner:
             self.controller.behaviour, inputs.behaviour, out=self.action.commands
         )
         self._steer()
+
+    def remember_docked_agents(self) -> None:
+        """Note the slot and generation of every robot's active agent as the one recharging.
+
+        Docking notes it for the docked robot (:meth:`_log_world_events`); a restored run calls
+        this once, since a docked robot's active agent is the one that docked (switching it
+        out ends the recharge).
+        """
+        np.copyto(self._docked_slot, self.scheduler.active_slot)
+        self._docked_generation[:] = self.scheduler.slot_generation[self._robots, self._docked_slot]
 
     def _load_switched(self, switched: np.ndarray) -> None:
         """Put each switched robot's new agent into the world (or park an idle CE robot)."""
@@ -298,6 +303,9 @@ class EvolutionRunner:
             s = int(slot[robot])
             log.append(step, robot, EventKind.DOCK, s, int(generation[robot, s]),
                        int(events.dock_pack[robot]))  # fmt: skip
+            # The agent that recharges, should it be switched out before it undocks.
+            self._docked_slot[robot] = s
+            self._docked_generation[robot] = generation[robot, s]
         for robot in np.flatnonzero(events.recharge_ended).tolist():
             s = int(slot[robot])
             log.append(step, robot, EventKind.RECHARGE_END, s, int(generation[robot, s]),
@@ -306,7 +314,7 @@ class EvolutionRunner:
             s = int(slot[robot])
             log.append(step, robot, EventKind.MATE, s, int(generation[robot, s]),
                        int(events.mate_partner[robot]))  # fmt: skip
-        if events.died.any():
+        if np.count_nonzero(events.died):
             age = scheduler.active_age  # before on_step: the age lived before this step
             for robot in np.flatnonzero(events.died).tolist():
                 s = int(slot[robot])
