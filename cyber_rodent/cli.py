@@ -208,8 +208,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     experiment.policies_by_name(args.policies)  # the shipped values are installed
     if args.workers is not None and args.workers < 1:
         raise CliError(f"--workers must be >= 1, got {args.workers}")
-    backend = "ray" if args.ray is not None else "local"
-    if backend == "ray":
+    executor = "ray" if args.ray is not None else "local"
+    if executor == "ray":
         check_ray_address(args.ray)  # before anything is written
     out = experiment.prepare_sweep_dir(args.out, resume=args.resume, force=args.force)
     try:
@@ -217,7 +217,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             spec,
             out,
             workers=args.workers,
-            backend=backend,
+            executor=executor,
             ray_address=args.ray or "local",
             progress=not args.no_progress,
         )
@@ -402,7 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="many runs (methods x seeds) in parallel: local processes or a Ray cluster",
         description="Run every method x seed, one process per run (or one Ray task per run "
         "with --ray), each in <out>/<method>-seed<NNN>; failed runs are retried from their "
-        "last checkpoint. Results are identical whichever backend ran them.",
+        "last checkpoint. Results are identical whichever executor ran them.",
     )
     sweep.add_argument("--methods", default="ee,ce", help="comma list of ee, ce")
     sweep.add_argument("--seeds", default="0-19", help="seeds: N, A-B or a comma list")

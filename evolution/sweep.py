@@ -1,7 +1,7 @@
 """Many runs (methods × seeds) in parallel: local processes by default, or a Ray cluster.
 
 Each run is independent and its result depends only on its config and seed, so a sweep gives
-identical tables whichever backend or how many workers ran it. Every run writes its own run
+identical tables whichever executor or how many workers ran it. Every run writes its own run
 directory ``<out>/<method>-seed<NNN>`` through :func:`evolution.api.run`, checkpointing every
 generation; a run whose worker fails or is killed is submitted again with ``resume=True`` and
 continues from its last checkpoint, so a retry costs at most one generation and changes nothing
@@ -40,7 +40,7 @@ import pandas as pd
 from cyber_rodent.validation import check_integer, choice, validate_fields
 
 METHODS = ("ee", "ce")
-BACKENDS = ("local", "ray")
+EXECUTORS = ("local", "ray")
 POLICIES = ("trained", "reactive")
 #: Environment for worker processes: one BLAS / llvmpipe thread each, since runs already fill
 #: the cores one process per run.
@@ -210,7 +210,7 @@ def sweep(
     out_dir: str | os.PathLike[str],
     *,
     workers: int | None = None,
-    backend: str = "local",
+    executor: str = "local",
     ray_address: str = "local",
     max_retries: int = 2,
     progress: bool = True,
@@ -221,9 +221,9 @@ def sweep(
     Args:
         spec: methods, seeds, generations and overrides.
         out_dir: parent directory of the run directories.
-        workers: concurrent runs for the local backend (default: the number of CPUs).
-        backend: ``"local"`` or ``"ray"``.
-        ray_address: with ``backend="ray"``: ``"auto"``, ``"HOST:PORT"``, ``"ray://HOST:PORT"``
+        workers: concurrent runs for the local executor (default: the number of CPUs).
+        executor: ``"local"`` (one process per run) or ``"ray"`` (one Ray task per run).
+        ray_address: with ``executor="ray"``: ``"auto"``, ``"HOST:PORT"``, ``"ray://HOST:PORT"``
             or ``"local"`` (start a Ray instance on this machine with ``workers`` CPUs).
         max_retries: how often a failed run is resubmitted (it resumes from its checkpoint).
         progress: show the aggregate progress bar.
@@ -234,8 +234,8 @@ def sweep(
         SweepFailed: a run still failed after ``max_retries`` retries (the others finish
             first; their results stay on disk).
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if executor not in EXECUTORS:
+        raise ValueError(f"executor must be one of {EXECUTORS}, got {executor!r}")
     if workers is not None and (
         isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
     ):
@@ -246,13 +246,13 @@ def sweep(
 
     for method in spec.methods:  # validate overrides once, before anything runs
         make_config(method, **spec.overrides)
-    if backend == "ray":
+    if executor == "ray":
         check_ray_address(ray_address)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     bar = _Progress(spec, out, progress)
     try:
-        if backend == "local":
+        if executor == "local":
             return _sweep_local(
                 spec, out, workers or os.cpu_count() or 1, max_retries, bar, poll_seconds
             )
@@ -326,7 +326,7 @@ def _sweep_ray(
     try:
         import ray
     except ImportError:
-        raise ValueError("the Ray backend needs ray: pip install 'cyber-rodent[cluster]'") from None
+        raise ValueError("the Ray executor needs ray: pip install 'cyber-rodent[cluster]'") from None
     started_here = not ray.is_initialized()
     if started_here:
         kwargs: dict[str, Any] = {

@@ -170,7 +170,7 @@ def test_ray_sweep_equals_serial_runs(tmp_path: Path) -> None:
     pytest.importorskip("ray")
     spec = SweepSpec(("ee",), (0, 1), 1, TINY_OVERRIDES, policies="reactive")
     results = sweep(
-        spec, tmp_path / "sweep", workers=2, backend="ray", ray_address="local", progress=False
+        spec, tmp_path / "sweep", workers=2, executor="ray", ray_address="local", progress=False
     )
     serial = _serial(tmp_path, spec)
     for key in spec.runs:

@@ -6,28 +6,21 @@ controller and a time-sharing scheduler (:class:`~evolution.scheduler.EmbodiedEv
 :class:`~evolution.scheduler.CentralisedEvolution`). Both methods use the same world, population,
 lifetime and time sharing; they differ only in the scheduler.
 
-One control step, for all robots at once (docs/design.md §3)::
+One control step, for all robots at once, is :meth:`EvolutionRunner.step`, which reads top to
+bottom: sense → decide → act (one compiled call, :func:`evolution.kernels.sense_decide_act`, or
+stage by stage), physics and the world's events (``SurvivalWorld.step``), then the schedule
+(``scheduler.on_step``); ``docs/design.md`` §3 draws the data flow. The run loop (checkpoint
+cadence, progress) is :mod:`evolution.runner.loop`, checkpoint I/O
+:mod:`evolution.runner.checkpoints`.
 
-    range sensors + vision ──► controller inputs ──► behaviour + LED  (or, docked: continue?)
-    ──► behaviour policy ──► wheel command ──► SurvivalWorld.step (k physics substeps)
-    ──► events ──► scheduler.on_step ──► agent switches: load energy, end recharge
-
-Decisions the paper leaves open, as implemented here:
-
-* **Docked robots.** While a robot recharges, only the recharge part of its agent's controller
-  acts (paper §3.5); its LED is dark (the selection part, which drives the LED, is idle) and the
-  world ignores its Mate signal and wheels.
-* **Previous LED input.** The controller's last input is the robot's LED as it was lit during
-  the previous step ("whether the CR had the LED turned on", §3.5): after an agent switch the
-  new agent sees the LED its predecessor left on, as a physical robot would.
-* **Agent switches.** When the scheduler switches a robot to another agent (time share, mating,
-  death, end of life), the runner loads that agent's own energy into the robot. If the robot
-  was docked, its recharge ends with the post-recharge rotation reflex: the recharge belonged
-  to the previous agent, and without the reflex the newcomer, teeth still on the electrode,
-  would be credited a capture it did not make.
-* **Idle CE robots.** A CE robot whose agents have all finished is parked until the whole
-  population has finished: energy 0, so it stands still with its LED dark and cannot dock or
-  mate (it still occupies space and can be seen, as a switched-off robot would).
+Decisions the paper leaves open that the runner implements (``docs/design.md`` §9, items 9,
+10, 12 and 14): a robot that keeps recharging runs only the recharge part of its controller,
+its LED dark and its Mate signal and wheels ignored; the previous-LED input is the physical LED
+(after an agent switch, the one the predecessor left on); a switched robot gets its new agent's
+own energy, and a docked one ends its recharge with the rotation reflex (the newcomer is not
+credited a capture it did not make); a CE robot whose agents have all finished is parked
+(energy 0: it stands still, LED dark, cannot dock or mate) until the whole population has
+finished.
 
 Random streams: the run's seed makes a ``SeedSequence`` that spawns one generator for the world
 (placement and reflexes), one for the scheduler (initial population; EE spawns one per robot
