@@ -326,7 +326,8 @@ def _sweep_ray(
     try:
         import ray
     except ImportError:
-        raise ValueError("the Ray executor needs ray: pip install 'cyber-rodent[cluster]'") from None
+        message = "the Ray executor needs ray: pip install 'cyber-rodent[cluster]'"
+        raise ValueError(message) from None
     started_here = not ray.is_initialized()
     if started_here:
         kwargs: dict[str, Any] = {
