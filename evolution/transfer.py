@@ -150,7 +150,7 @@ def fittest_individuals(
     offspring, whose records are still empty. The scheduler keeps the lives of its newest
     generations (:attr:`~evolution.scheduler.TimeSharingScheduler.completed_lives`).
 
-    Without ``generation`` (or for a checkpoint written before lives were recorded), every
+    Without ``generation`` (or for a generation of which no full life is recorded), every
     living agent is ranked by its record so far, agents that have mated first; ties keep the
     robot-major slot order.
 
@@ -264,7 +264,7 @@ def transfer(
     with EvolutionRunner.from_checkpoint(checkpoint, policies) as source_runner:
         chosen = fittest_individuals(source_runner.scheduler, top, ranked)
         if ranked is not None and not source_runner.scheduler.lives_of(ranked):
-            ranked = None  # an older checkpoint: the living population was ranked
+            ranked = None  # no full life of that generation: the living population was ranked
         base = source_runner.config
     config = hardware_run_config(base, profile, robots=robots, agents_per_robot=agents_per_robot)
     genomes = [

@@ -8,6 +8,7 @@ class" rule to both, so the providers can differ only in how they measure.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -42,6 +43,28 @@ def apply_noise(
         np.maximum(distance, 0.0, out=distance)
     if noise.dropout > 0:
         keep &= rng.random(size=shape) >= noise.dropout
+
+
+def noise_state(rng: np.random.Generator | None) -> dict[str, Any]:
+    """A vision provider's checkpoint state: its noise generator's state (None without noise).
+
+    The noise generator is a provider's only state a resumed run needs: every other buffer is
+    an output, overwritten by the next call before anyone reads it.
+    """
+    return {"rng": None if rng is None else rng.bit_generator.state}
+
+
+def load_noise_state(rng: np.random.Generator | None, state: dict[str, Any]) -> None:
+    """Restore a :func:`noise_state` into ``rng`` (the provider's noise generator).
+
+    Raises:
+        ValueError: the state has a generator and the provider none, or the other way round.
+    """
+    saved = state.get("rng")
+    if (saved is None) != (rng is None):
+        raise ValueError("vision state: the noise generator does not match this provider")
+    if rng is not None and saved is not None:
+        rng.bit_generator.state = dict(saved)
 
 
 def frame_from_detections(

@@ -43,7 +43,12 @@ import numpy as np
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
 from cyber_rodent.vision import kernels
 from cyber_rodent.vision.config import CameraConfig
-from cyber_rodent.vision.detections import apply_noise, frame_from_detections
+from cyber_rodent.vision.detections import (
+    apply_noise,
+    frame_from_detections,
+    load_noise_state,
+    noise_state,
+)
 from cyber_rodent.vision.projection import OmniProjection
 from cyber_rodent.vision.targets import TargetShape, target_geometry
 from cyber_rodent.vision.types import BATTERY, FACE, LED, VisionFrame
@@ -344,16 +349,12 @@ class GeometricVision:
         return self.nearest
 
     def state(self) -> dict[str, Any]:
-        """The provider's mutable state for a checkpoint: the noise generator's state."""
-        return {"rng": None if self.rng is None else self.rng.bit_generator.state}
+        """The provider's checkpoint state (:func:`~cyber_rodent.vision.detections.noise_state`)."""
+        return noise_state(self.rng)
 
     def load_state(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state` (the noise generator) into this provider."""
-        saved = state.get("rng")
-        if (saved is None) != (self.rng is None):
-            raise ValueError("vision state: the noise generator does not match this provider")
-        if self.rng is not None and saved is not None:
-            self.rng.bit_generator.state = dict(saved)
+        """Restore :meth:`state` into this provider."""
+        load_noise_state(self.rng, state)
 
     def _merged_blobs(
         self,
