@@ -16,6 +16,7 @@ import pytest
 
 from cyber_rodent.vision import CameraConfig, make_provider
 from cyber_rodent.world import World, WorldConfig
+from tests.conftest import crowd
 
 
 @pytest.mark.parametrize(("n_robots", "n_packs"), [(4, 5), (3, 4), (8, 10), (2, 0)])
@@ -24,14 +25,7 @@ def test_nearest_targets_equal_observe(n_robots: int, n_packs: int) -> None:
     vision = make_provider("geometric", world)
     rng = np.random.default_rng(100 * n_robots + n_packs)
     seen, hidden_nearest = 0, 0
-    for trial in range(60):
-        world.reset(rng)
-        spread = 0.3 + 0.03 * trial
-        for i in range(n_robots):
-            x, y = rng.uniform(-spread, spread, size=2)
-            world.set_robot_pose(i, x, y, rng.uniform(-math.pi, math.pi))
-        world.set_led(rng.random(n_robots) < 0.6)
-        mujoco.mj_forward(world.model, world.data)
+    for _ in crowd(world, rng, 60):
         frame = vision.observe()
         nearest = vision.nearest_targets()
         np.testing.assert_array_equal(nearest.visible, frame.visible)
