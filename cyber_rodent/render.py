@@ -144,19 +144,6 @@ def check_writable_output(path: str | os.PathLike[str]) -> Path:
     return out
 
 
-def publish_file(temp: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
-    """Give a finished temporary file the usual permissions and rename it into place.
-
-    For writers that still manage their own temporary; new code writes through
-    :func:`cyber_rodent.atomic.atomic_output`, which also fsyncs and cleans up.
-    """
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(temp, 0o666 & ~mask)
-    os.replace(temp, out)
-    return Path(out)
-
-
 def write_png(image: np.ndarray, path: str | os.PathLike[str]) -> Path:
     """Write an RGB image as PNG atomically (see :func:`cyber_rodent.atomic.atomic_output`)."""
     import imageio.v3 as iio

@@ -137,11 +137,6 @@ class Perception:
         self._row_index = np.arange(n)[:, None]
         self._class_index = np.arange(N_CLASSES)[None, :]
 
-    @property
-    def behaviour_inputs(self) -> BehaviourInputs:
-        """The behaviours' inputs (views of :attr:`inputs`)."""
-        return self.inputs.behaviour
-
     def update(self) -> InputBuffers:
         """Sense the current state; fill every buffer; return :attr:`inputs`."""
         self.see()
