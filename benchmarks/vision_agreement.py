@@ -55,9 +55,10 @@ def run(n_scenes: int, seed: int, within: float, config: CameraConfig) -> dict:
     with RenderedVision(world, config) as ren:
         for s in range(n_scenes):
             random_scene(world, np.random.default_rng([seed, s]))
-            r, u, f_geo, f_ren = compare_scene(geo, ren)
-            rows += [(s, x) for x in r]
-            unmatched += [(s, b) for b in u]
+            scene = compare_scene(geo, ren)
+            f_geo, f_ren = scene.geometric, scene.rendered
+            rows += [(s, x) for x in scene.targets]
+            unmatched += [(s, b) for b in scene.unmatched]
             for i in range(world.config.n_robots):
                 for c in range(N_CLASSES):
                     pairs.append(

@@ -191,8 +191,9 @@ def test_providers_agree_on_random_scenes() -> None:
     with RenderedVision(world) as ren:
         for s in range(8):
             random_scene(world, np.random.default_rng([99, s]))
-            r, _, f_geo, f_ren = compare_scene(geo, ren)
-            rows += r
+            scene = compare_scene(geo, ren)
+            f_geo, f_ren = scene.geometric, scene.rendered
+            rows += scene.targets
             # The nearest pack is what Forage reads: both must see one, within 10 %.
             both = f_geo.visible[:, BATTERY] & f_ren.visible[:, BATTERY]
             assert both.sum() >= 3

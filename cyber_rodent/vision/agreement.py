@@ -3,12 +3,18 @@
 Both providers observe the same state. The geometric provider says, for every candidate target
 of every robot (other robots' lit LEDs and faces, every pack), whether it is visible
 (:meth:`GeometricVision.measure_targets`). The rendered provider's blobs are matched one-to-one
-to targets of the same class by bearing: greedily, smallest bearing error first, visible
-targets before hidden ones, within the target's angular half width plus max(2°, 2 px). A target
-is "rendered-detected" when a blob matched it. For targets both providers detect, the bearing
+to true targets of the same class by bearing *and* distance (:func:`match_blobs`), without
+regard to what the geometric provider said, so neither provider is favoured. A target is
+"rendered-detected" when a blob matched it. For targets both providers detect, the bearing
 error and the relative distance error are recorded.
 
-Used by ``benchmarks/vision_agreement.py`` (many random scenes) and by the tests (a few).
+The controller and the behaviours read only the nearest target of each class, so
+:func:`compare_nearest` compares that too: the two providers agree on a robot's input of one
+class when both see nothing, or both see a nearest target at distances within
+:data:`NEAREST_DISTANCE_TOLERANCE` of each other.
+
+Used by ``benchmarks/vision_agreement.py`` (random scenes), ``benchmarks/vision_hard_scenes.py``
+(:mod:`cyber_rodent.vision.hard_scenes`) and by the tests.
 """
 
 from __future__ import annotations
@@ -33,8 +39,10 @@ class TargetComparison:
         cls: colour class.
         distance: m, true horizontal distance (camera axis to target axis).
         geometric, rendered: whether each provider detected it.
-        bearing_error_deg: |rendered − true bearing|, degrees (NaN unless both detected).
-        distance_rel_error: |rendered − true distance| / true distance (NaN unless both).
+        geometric_area: px, the geometric provider's expected visible area.
+        bearing_error_deg: |rendered − true bearing|, degrees (NaN unless rendered detected).
+        distance_rel_error: |rendered − true distance| / true distance (NaN unless rendered).
+        blob_area: px, the matched rendered blob's area (0 if none).
     """
 
     robot: int
@@ -43,73 +51,151 @@ class TargetComparison:
     distance: float
     geometric: bool
     rendered: bool
+    geometric_area: float = 0.0
     bearing_error_deg: float = math.nan
     distance_rel_error: float = math.nan
+    blob_area: float = 0.0
+
+
+#: A blob is credited to a target only if its distance is within this fraction of the target's
+#: true distance (besides the bearing window): a fragment of one robot's face is not another's.
+DISTANCE_TOLERANCE = 0.5
+#: Bearing window beyond a target's angular half width: max(2°, 2 pixels).
+BEARING_MARGIN_DEG = 2.0
+
+
+def match_blobs(
+    bearing: np.ndarray,
+    distance: np.ndarray,
+    half_width: np.ndarray,
+    blobs: list[Blob],
+    px_angle: float,
+) -> np.ndarray:
+    """Pair one robot's blobs of one class with the true targets of that class, one to one.
+
+    A (target, blob) pair is possible when the blob's bearing is within the target's angular
+    half width plus max(2°, 2 px) of the target's bearing and its distance within
+    :data:`DISTANCE_TOLERANCE` of the target's. Pairs are taken greedily, the smallest
+    ``(bearing error / window)² + (relative distance error / tolerance)²`` first (ties: lower
+    target, then lower blob index), whatever either provider said about visibility, so the
+    matcher favours neither.
+
+    Args:
+        bearing, distance, half_width: (T,) each target's true bearing (rad), horizontal
+            distance and half width (m).
+        blobs: the detected blobs (all of the targets' class).
+        px_angle: rad, one pixel column of the strip.
+
+    Returns:
+        (T,) index into ``blobs`` of each target's blob, -1 where none matched.
+    """
+    matched = np.full(len(bearing), -1, dtype=np.int64)
+    if not len(blobs) or not len(bearing):
+        return matched
+    b_bear = np.array([b.bearing for b in blobs])
+    b_dist = np.array([b.distance for b in blobs])
+    safe = np.maximum(distance, 1e-6)
+    window = np.arctan2(half_width, safe) + max(math.radians(BEARING_MARGIN_DEG), 2 * px_angle)
+    turn = b_bear[None, :] - bearing[:, None] + math.pi
+    err_b = np.abs(np.remainder(turn, 2 * math.pi) - math.pi)
+    err_d = np.abs(b_dist[None, :] - distance[:, None]) / safe[:, None]
+    ok = (err_b <= window[:, None]) & (err_d <= DISTANCE_TOLERANCE)
+    cost = (err_b / window[:, None]) ** 2 + (err_d / DISTANCE_TOLERANCE) ** 2
+    t_idx, b_idx = np.nonzero(ok)
+    order = np.lexsort((b_idx, t_idx, cost[t_idx, b_idx]))
+    used = np.zeros(len(blobs), dtype=bool)
+    for k in order:
+        t, j = t_idx[k], b_idx[k]
+        if matched[t] < 0 and not used[j]:
+            matched[t] = j
+            used[j] = True
+    return matched
 
 
 def compare_robot(
     geo: GeometricVision, meas: TargetMeasurements, frame: VisionFrame, robot: int
 ) -> tuple[list[TargetComparison], list[Blob]]:
-    """Match one robot's rendered blobs to its candidate targets.
+    """Match one robot's rendered blobs to its candidate targets (:func:`match_blobs`).
 
     Returns:
-        The comparison of every candidate target, and the rendered blobs that matched none.
+        The comparison of every candidate target (another robot's lit LED, another robot's
+        face, every pack), and the rendered blobs that matched none.
     """
     led_on = geo.world.led_on
     px_angle = 2.0 * math.pi / geo.config.strip_width
-    candidates = [
-        t
-        for t in range(len(geo.target_geom))
-        if geo.target_owner[t] != robot and (geo.target_cls[t] != LED or led_on[t])
-    ]
     blobs = frame.blobs[robot]
-    used = [False] * len(blobs)
+    used = np.zeros(len(blobs), dtype=bool)
     rows = []
-    order = sorted(candidates, key=lambda t: (not meas.visible[robot, t], meas.distance[robot, t]))
-    for t in order:
-        cls = int(geo.target_cls[t])
-        bearing = float(meas.bearing[robot, t])
-        distance = float(meas.distance[robot, t])
-        half = math.atan2(float(geo.half_width[t]), max(distance, 1e-6))
-        tolerance = half + max(math.radians(2.0), 2.0 * px_angle)
-        best, best_err = -1, math.inf
-        for j, blob in enumerate(blobs):
-            if used[j] or blob.cls != cls:
-                continue
-            err = abs(math.remainder(blob.bearing - bearing, 2.0 * math.pi))
-            if err < best_err:
-                best, best_err = j, err
-        detected = best >= 0 and best_err <= tolerance
-        extra = {}
-        if detected:
-            used[best] = True
-            extra = {
-                "bearing_error_deg": math.degrees(best_err),
-                "distance_rel_error": abs(blobs[best].distance - distance) / distance,
-            }
-        rows.append(
-            TargetComparison(
-                robot=robot,
-                target=t,
-                cls=cls,
-                distance=distance,
-                geometric=bool(meas.visible[robot, t]),
-                rendered=detected,
-                **extra,
-            )
+    for cls in range(N_CLASSES):
+        targets = np.array(
+            [
+                t
+                for t in range(len(geo.target_geom))
+                if geo.target_cls[t] == cls
+                and geo.target_owner[t] != robot
+                and (cls != LED or led_on[t])
+            ],
+            dtype=np.int64,
         )
+        of_class = [j for j, b in enumerate(blobs) if b.cls == cls]
+        matched = match_blobs(
+            meas.bearing[robot, targets],
+            meas.distance[robot, targets],
+            geo.half_width[targets],
+            [blobs[j] for j in of_class],
+            px_angle,
+        )
+        for t, m in zip(targets.tolist(), matched.tolist(), strict=True):
+            distance = float(meas.distance[robot, t])
+            extra = {}
+            if m >= 0:
+                blob = blobs[of_class[m]]
+                used[of_class[m]] = True
+                err = abs(math.remainder(blob.bearing - float(meas.bearing[robot, t]), 2 * math.pi))
+                extra = {
+                    "bearing_error_deg": math.degrees(err),
+                    "distance_rel_error": abs(blob.distance - distance) / distance,
+                    "blob_area": float(blob.area),
+                }
+            rows.append(
+                TargetComparison(
+                    robot=robot,
+                    target=t,
+                    cls=cls,
+                    distance=distance,
+                    geometric=bool(meas.visible[robot, t]),
+                    rendered=m >= 0,
+                    geometric_area=float(meas.area[robot, t]),
+                    **extra,
+                )
+            )
+    rows.sort(key=lambda r: r.target)
     unmatched = [b for j, b in enumerate(blobs) if not used[j]]
     return rows, unmatched
 
 
-def compare_scene(
-    geo: GeometricVision, ren: RenderedVision
-) -> tuple[list[TargetComparison], list[Blob], VisionFrame, VisionFrame]:
-    """Compare both providers on the world's current state (both bound to the same world).
+@dataclass
+class SceneComparison:
+    """Both providers on one state.
 
-    Returns:
-        Per-target comparisons, unmatched rendered blobs, and both frames (geometric, rendered).
+    Attributes:
+        targets: every robot's candidate targets (:func:`compare_robot`).
+        unmatched: rendered blobs that matched no target.
+        nearest: every robot's nearest target of each class (:func:`compare_nearest`).
+        geometric, rendered: both frames.
+        measurements: the geometric provider's per-target measurements.
     """
+
+    targets: list[TargetComparison]
+    unmatched: list[Blob]
+    nearest: list[NearestComparison]
+    geometric: VisionFrame
+    rendered: VisionFrame
+    measurements: TargetMeasurements
+
+
+def compare_scene(geo: GeometricVision, ren: RenderedVision) -> SceneComparison:
+    """Compare both providers on the world's current state (both bound to the same world)."""
     if geo.world is not ren.world:
         raise ValueError("both providers must observe the same world")
     meas = geo.measure_targets()
@@ -121,7 +207,74 @@ def compare_scene(
         r, u = compare_robot(geo, meas, f_ren, i)
         rows += r
         unmatched += u
-    return rows, unmatched, f_geo, f_ren
+    nearest = compare_nearest(geo, meas, f_geo, f_ren)
+    return SceneComparison(rows, unmatched, nearest, f_geo, f_ren, meas)
+
+
+#: Relative distance difference within which two nearest-target readings agree.
+NEAREST_DISTANCE_TOLERANCE = 0.1
+
+
+@dataclass(frozen=True)
+class NearestComparison:
+    """One robot's nearest target of one class (a controller input), as both providers saw it.
+
+    Attributes:
+        robot, cls: observer and colour class.
+        closest: m, true distance of the closest target of the class that could be seen at
+            all (another robot's lit LED or face, any pack), whatever occludes it; inf if none.
+        geometric, rendered: whether each provider saw a target of the class.
+        geometric_distance, rendered_distance: m, the nearest one's distance (inf if none).
+        geometric_bearing, rendered_bearing: rad (0 if none).
+    """
+
+    robot: int
+    cls: int
+    closest: float
+    geometric: bool
+    rendered: bool
+    geometric_distance: float
+    rendered_distance: float
+    geometric_bearing: float
+    rendered_bearing: float
+
+    @property
+    def agree(self) -> bool:
+        """Both see nothing, or both see one at distances within 10 % of each other."""
+        if self.geometric != self.rendered:
+            return False
+        if not self.geometric:
+            return True
+        gap = abs(self.rendered_distance - self.geometric_distance)
+        return gap <= NEAREST_DISTANCE_TOLERANCE * self.geometric_distance
+
+
+def compare_nearest(
+    geo: GeometricVision, meas: TargetMeasurements, f_geo: VisionFrame, f_ren: VisionFrame
+) -> list[NearestComparison]:
+    """Compare every robot's nearest LED, face and pack between the two frames."""
+    out = []
+    led_on = geo.world.led_on
+    for i in range(geo.n_robots):
+        for c in range(N_CLASSES):
+            sel = (geo.target_cls == c) & (geo.target_owner != i)
+            if c == LED:
+                sel &= np.concatenate([led_on, np.zeros(len(sel) - len(led_on), dtype=bool)])
+            d = meas.distance[i, sel]
+            out.append(
+                NearestComparison(
+                    robot=i,
+                    cls=c,
+                    closest=float(d.min()) if len(d) else math.inf,
+                    geometric=bool(f_geo.visible[i, c]),
+                    rendered=bool(f_ren.visible[i, c]),
+                    geometric_distance=float(f_geo.distance[i, c]),
+                    rendered_distance=float(f_ren.distance[i, c]),
+                    geometric_bearing=float(f_geo.bearing[i, c]),
+                    rendered_bearing=float(f_ren.bearing[i, c]),
+                )
+            )
+    return out
 
 
 def random_scene(world: World, rng: np.random.Generator, led_probability: float = 0.5) -> None:

@@ -10,6 +10,7 @@ square pixels in angle, so the picture reads like a panorama.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
@@ -65,9 +66,25 @@ def save_omni_png(
 
 
 def compose_omni_panels(
-    strip: np.ndarray, masks: np.ndarray, frame: VisionFrame, robot: int, vision: RenderedVision
+    strip: np.ndarray,
+    masks: np.ndarray,
+    frame: VisionFrame,
+    robot: int,
+    vision: RenderedVision,
+    expected: Sequence[tuple[float, int, str]] = (),
+    title: str = "",
 ) -> np.ndarray:
-    """The two stacked panels (RGB uint8) for one robot: image, and segmentation overlay."""
+    """The two stacked panels (RGB uint8) for one robot: image, and segmentation overlay.
+
+    Args:
+        strip, masks: the robot's RGB strip and its (3, height, width) class masks.
+        frame: the rendered frame whose blobs label the overlay.
+        robot: the robot's index.
+        vision: the rendered provider (projection and camera).
+        expected: extra (bearing, class, label) marks drawn on the image panel, e.g. where the
+            geometric provider expects targets.
+        title: replaces the header line's text.
+    """
     proj = vision.projection
     config = vision.config
     overlay = (strip.astype(np.float32) * 0.35).astype(np.uint8)
@@ -112,6 +129,21 @@ def compose_omni_panels(
             1,
             cv2.LINE_AA,
         )
+    # Extra marks on the image panel, from its top edge, staggered like the blob labels.
+    line_end = [-1] * 4
+    for bearing, cls, label in sorted(expected, key=lambda m: column_of(m[0])):
+        x = column_of(bearing)
+        rgb = _CLASS_RGB[cls]
+        cv2.line(top, (x, 0), (x, 12), (255, 255, 255), 3)
+        cv2.line(top, (x, 0), (x, 12), rgb, 1)
+        (w_text, _), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
+        left = min(x + 3, width - w_text - 2)
+        line = next((k for k, end in enumerate(line_end) if end < left), len(line_end) - 1)
+        line_end[line] = left + w_text + 4
+        cv2.putText(
+            top, label, (left, 12 + 14 * line), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+            (255, 255, 255), 1, cv2.LINE_AA,
+        )  # fmt: skip
     # Bearing ticks every 45° on the image panel.
     for deg in range(-180, 181, 45):
         x = column_of(math.radians(deg)) if abs(deg) < 180 else (0 if deg > 0 else width - 1)
@@ -129,8 +161,11 @@ def compose_omni_panels(
     header = np.zeros((20, width, 3), dtype=np.uint8)
     cv2.putText(
         header,
-        f"robot {robot}: omni image (top), segmentation (bottom); "
-        f"front = centre, left of centre = robot's left",
+        title
+        or (
+            f"robot {robot}: omni image (top), segmentation (bottom); "
+            f"front = centre, left of centre = robot's left"
+        ),
         (4, 14),
         cv2.FONT_HERSHEY_SIMPLEX,
         0.45,
