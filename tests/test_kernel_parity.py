@@ -136,8 +136,10 @@ def test_geometric_vision_kernels_match_their_references(
         fc, fr = compiled.front, reference.front
         for name in ("cam", "rot", "centre", "gmat", "candidate", "sample_ok"):
             np.testing.assert_array_equal(getattr(fc, name), getattr(fr, name), err_msg=name)
-        for name in ("bearing", "distance", "half_angle", "local", "rays"):
+        for name in ("bearing", "distance", "local", "rays"):
             np.testing.assert_allclose(getattr(fc, name), getattr(fr, name), rtol=0, atol=1e-12)
+        for name in ("left_px", "right_px", "top_px", "bottom_px"):
+            np.testing.assert_allclose(getattr(fc, name), getattr(fr, name), rtol=1e-11, atol=0)
         for name in ("width_px", "height_px", "full_area"):
             np.testing.assert_allclose(getattr(fc, name), getattr(fr, name), rtol=1e-11, atol=0)
         for name in ("bearing", "distance", "local", "diff"):
@@ -740,7 +742,7 @@ def _labelling_buffers(
     )
     runs = segmentation_kernels.Runs(
         *(np.full(capacity, -5, dtype=np.int64) for _ in range(6)),
-        comp_stats=np.full((capacity, 3), -5.0),
+        comp_stats=np.full((capacity, 7), -5.0),
         comp_ints=np.full((capacity, 4), -5, dtype=np.int64),
     )
     ext = segmentation_kernels.Extents(

@@ -91,6 +91,12 @@ def _opencv_blobs(seg: OmniSegmenter, mask: np.ndarray, cls: int) -> tuple[np.nd
     sin_sum = np.bincount(blob, weights=np.sin(column_bearing)[cols], minlength=k)
     cos_sum = np.bincount(blob, weights=np.cos(column_bearing)[cols], minlength=k)
     bearing = np.arctan2(sin_sum, cos_sum)
+    edge_bearing = []  # mean bearing of each blob's top row's pixels, then its bottom row's
+    for edge in (top, bottom):
+        on = rows == edge[blob]
+        weights = (np.sin(column_bearing)[cols[on]], np.cos(column_bearing)[cols[on]])
+        sums = [np.bincount(blob[on], weights=w, minlength=k) for w in weights]
+        edge_bearing.append(np.arctan2(*sums))
     if cls == BATTERY and k > 1:
         dev = np.angle(np.exp(1j * (bearing[blob] - column_bearing[cols])))
         right, left = np.zeros(k), np.zeros(k)
@@ -111,7 +117,10 @@ def _opencv_blobs(seg: OmniSegmenter, mask: np.ndarray, cls: int) -> tuple[np.nd
             np.maximum.at(bottom_g, group, bottom)
             top, bottom = top_g, bottom_g
             bearing = np.arctan2(sin_sum, cos_sum)
-    distance = seg.distance_from_edges(cls, bearing, top.astype(float), bottom + 1.0)
+            edge_bearing = [bearing, bearing]
+    distance = seg.distance_from_edges(
+        cls, bearing, top.astype(float), bottom + 1.0, edge_bearing[0], edge_bearing[1]
+    )
     return bearing, distance, area
 
 

@@ -81,11 +81,13 @@ class TargetTable(NamedTuple):
     half_width: Floats  #: (T,) m
     half_height: Floats  #: (T,) m
     rim: Floats  #: (T,) m, cylinder radius seen from above (0 for plates)
-    half_depth: Floats  #: (T,) m, plate half thickness (0 for cylinders)
+    depth_front: Floats  #: (T,) m, a plate's front face ahead of its centre (0 for cylinders)
+    depth_back: Floats  #: (T,) m, where its sides begin to stand out of its body (0: cylinders)
     min_area: Floats  #: (T,) px, the class's smallest detectable blob
     sample_target: Ints  #: (S,) target of each sample
     sample_lateral: Floats  #: (S,) m, offset along the target's width axis
     sample_dz: Floats  #: (S,) m, vertical offset
+    sample_along: Floats  #: (S,) m, offset along a plate's normal (0 for cylinders)
     sample_geom: Ints  #: (S,) geom a ray must hit first to count
     sample_start: Ints  #: (T,) first sample of each target
     sample_end: Ints  #: (T,) one past its last sample
@@ -110,6 +112,9 @@ class CameraModel(NamedTuple):
     tan_el_min: float  #: the elevation band every bearing sees
     tan_el_max: float
     edge_clip: float  #: rad, keeps tan() finite for targets beside the camera
+    half_tan: float  #: tan of half a view's horizontal angle
+    view_width: float  #: pixel columns per view
+    rows: float  #: pixel rows of the strip
 
 
 class FrontBuffers(NamedTuple):
@@ -122,10 +127,13 @@ class FrontBuffers(NamedTuple):
     local: Floats  #: (n, T, 3) target axes in each camera's frame
     bearing: Floats  #: (n, T) rad
     distance: Floats  #: (n, T) m
-    width_px: Floats  #: (n, T)
-    height_px: Floats  #: (n, T)
-    half_angle: Floats  #: (n, T) rad, half the target's angular width
-    full_area: Floats  #: (n, T) px if fully visible
+    width_px: Floats  #: (n, T) pixel columns whose centre the target covers
+    height_px: Floats  #: (n, T) pixel rows whose centre it covers
+    full_area: Floats  #: (n, T) px if fully visible: ``width_px * height_px``
+    left_px: Floats  #: (n, T) strip column coordinate of its left edge (0 = strip's left)
+    right_px: Floats  #: (n, T) and of its right edge (may exceed the strip: it wraps)
+    top_px: Floats  #: (n, T) row coordinate of its top edge (0 = strip's top), clipped
+    bottom_px: Floats  #: (n, T) and of its bottom edge
     candidate: Bools  #: (n, T) could be seen at all
     diff: Floats  #: (n, T, 3) camera-to-target vectors, world frame
     lateral: Floats  #: (n, T, 3) each target's width axis as seen by each robot
@@ -244,64 +252,102 @@ def gather_reference(poses: MujocoPoses, targets: TargetTable, front: FrontBuffe
 
 
 # --- front -------------------------------------------------------------------------------------
+def _covered(low: float, high: float) -> float:
+    """How many pixel centres (at k + 0.5) lie in [low, high]: a rasteriser fills exactly the
+    pixels whose centre the shape covers, so this, not the fractional extent, is the size of a
+    small target's blob."""
+    return float(max(math.floor(high - 0.5) - math.ceil(low - 0.5) + 1, 0))
+
+
+_covered_compiled = jit_inline(_covered)
+
+
+def covered(low: Floats, high: Floats) -> Floats:
+    """:func:`_covered` on arrays (the references use it)."""
+    count: Floats = np.maximum(np.floor(high - 0.5) - np.ceil(low - 0.5) + 1.0, 0.0)
+    return count
+
+
+@jit_inline
+def _corner_column(
+    camera: CameraModel, f: FrontBuffers, i: int, t: int, along: float, across: float,
+    n0: float, n1: float, a0: float, a1: float, view: int,
+) -> float:  # fmt: skip
+    """Strip column coordinate of a point of target ``t`` at ``along`` the normal (n0, n1) and
+    ``across`` the width axis (a0, a1) from its axis, in the frame of robot ``i``'s view
+    ``view``."""
+    r = f.rot[i]
+    p0 = f.diff[i, t, 0] + along * n0 + across * a0
+    p1 = f.diff[i, t, 1] + along * n1 + across * a1
+    p2 = f.diff[i, t, 2]
+    l0 = p0 * r[0] + p1 * r[3] + p2 * r[6]
+    l1 = p0 * r[1] + p1 * r[4] + p2 * r[7]
+    clip = camera.edge_clip
+    rel = min(max(_wrap_compiled(math.atan2(l1, l0) - camera.view_centres[view]), -clip), clip)
+    return view * camera.view_width + (camera.half_tan - math.tan(rel)) * camera.px_per_u
+
+
 @jit_inline
 def _project(
     targets: TargetTable, camera: CameraModel, f: FrontBuffers, i: int, t: int
 ) -> float:
-    """Target ``t``'s lateral axis and projected size in robot ``i``'s camera; its full area.
+    """Target ``t``'s lateral axis and pixel footprint in robot ``i``'s camera; its full area.
 
-    Projected size: the target's two lateral edges (and, for plates, its front and back faces)
-    projected onto the image plane of the view that sees its axis give the width; the far top
-    rim to the near bottom rim (cylinders seen from above) or top to bottom edge (plates),
-    clipped to the strip, give the height. Reads ``diff``, ``local``, ``bearing`` and
-    ``distance``, which :func:`front` wrote.
+    Columns: the target's outline as seen from the camera (a cylinder's two edges across the
+    line of sight; a plate's front face if the camera is ahead of it, and the side that stands
+    out of its body if the camera is beside it), projected into the view that sees its axis.
+    Rows: the far top rim to the near bottom rim (cylinders seen from above) or top to bottom
+    edge (plates), clipped to the strip. Its size is the pixel centres that footprint covers,
+    as a rasteriser counts them. Reads ``diff``, ``local``, ``bearing`` and ``distance``,
+    which :func:`front` wrote.
     """
     span = camera.view_span
-    edge_clip = camera.edge_clip
-    r = f.rot[i]
     g = f.gmat[t]
-    d0, d1 = f.diff[i, t, 0], f.diff[i, t, 1]
-    l0, l1, l2 = f.local[i, t, 0], f.local[i, t, 1], f.local[i, t, 2]
+    d0, d1, d2 = f.diff[i, t, 0], f.diff[i, t, 1], f.diff[i, t, 2]
+    l2 = f.local[i, t, 2]
     b, dist = f.bearing[i, t], f.distance[i, t]
-    if targets.plate[t]:
-        a0, a1, a2 = g[1], g[4], g[7]  # the plate's own width axis
-    else:  # perpendicular to the line of sight
-        rh = max(math.hypot(d0, d1), 1e-9)
-        a0, a1, a2 = -d1 / rh, d0 / rh, 0.0
-    f.lateral[i, t, 0] = a0
-    f.lateral[i, t, 1] = a1
-    f.lateral[i, t, 2] = a2
-    la0 = a0 * r[0] + a1 * r[3] + a2 * r[6]
-    la1 = a0 * r[1] + a1 * r[4] + a2 * r[7]
-    nx, ny, nz = g[0], g[3], g[6]  # the target's x axis (a plate's normal)
-    nl0 = nx * r[0] + ny * r[3] + nz * r[6]
-    nl1 = nx * r[1] + ny * r[4] + nz * r[7]
+    hw = targets.half_width[t]
     rel = (camera.view_centres[0] - b + 0.5 * span) % _TWO_PI
     view = min(int(rel // span), camera.n_views - 1)
     offset = 0.5 * span - (rel - view * span)
-    axis = camera.view_centres[view]
-    hw, hd = targets.half_width[t], targets.half_depth[t]
-    ex, ey = la0 * hw, la1 * hw
-    fx, fy = nl0 * hd, nl1 * hd
-    b_left = math.atan2(ey + l1, ex + l0)
-    b_right = math.atan2(-ey + l1, -ex + l0)
-    b_front = math.atan2(fy + l1, fx + l0)
-    b_back = math.atan2(-fy + l1, -fx + l0)
-    u_left = math.tan(min(max(_wrap_compiled(b_left - axis), -edge_clip), edge_clip))
-    u_right = math.tan(min(max(_wrap_compiled(b_right - axis), -edge_clip), edge_clip))
-    u_front = math.tan(min(max(_wrap_compiled(b_front - axis), -edge_clip), edge_clip))
-    u_back = math.tan(min(max(_wrap_compiled(b_back - axis), -edge_clip), edge_clip))
-    du = abs(u_left - u_right)
-    du += abs(u_front - u_back)
+    left, right = math.inf, -math.inf
+    if targets.plate[t]:
+        a0, a1, a2 = g[1], g[4], g[7]  # the plate's own width axis
+        n0, n1 = g[0], g[3]  # its normal
+        front_face, back = targets.depth_front[t], targets.depth_back[t]
+        x_cam = -(d0 * n0 + d1 * n1 + d2 * g[6])  # the camera in the plate's frame
+        y_cam = -(d0 * a0 + d1 * a1 + d2 * a2)
+        if x_cam > front_face:  # the front face
+            for across in (-hw, hw):
+                x = _corner_column(camera, f, i, t, front_face, across, n0, n1, a0, a1, view)
+                left, right = min(left, x), max(right, x)
+        if abs(y_cam) > hw:  # the side that stands out, edge-on
+            side = hw if y_cam > 0.0 else -hw
+            for along in (back, front_face):
+                x = _corner_column(camera, f, i, t, along, side, n0, n1, a0, a1, view)
+                left, right = min(left, x), max(right, x)
+    else:  # the two edges across the line of sight
+        rh = max(math.hypot(d0, d1), 1e-9)
+        a0, a1, a2 = -d1 / rh, d0 / rh, 0.0
+        for across in (-hw, hw):
+            x = _corner_column(camera, f, i, t, 0.0, across, 0.0, 0.0, a0, a1, view)
+            left, right = min(left, x), max(right, x)
+    f.lateral[i, t, 0] = a0
+    f.lateral[i, t, 1] = a1
+    f.lateral[i, t, 2] = a2
     cos_off = math.cos(offset)
     depth_far = max((dist + targets.rim[t]) * cos_off, 1e-9)
     depth_near = max((dist - targets.rim[t]) * cos_off, 1e-9)
     vt = (l2 + targets.half_height[t]) / depth_far
     vb = (l2 - targets.half_height[t]) / depth_near
-    dv = max(min(vt, camera.v_top) - max(vb, camera.v_bottom), 0.0)
-    f.half_angle[i, t] = 0.5 * abs(_wrap_compiled(b_left - b_right))
-    w_px = du * camera.px_per_u
-    h_px = dv * camera.px_per_v
+    top = min(max((camera.v_top - vt) * camera.px_per_v, 0.0), camera.rows)
+    bottom = min(max((camera.v_top - vb) * camera.px_per_v, 0.0), camera.rows)
+    w_px = _covered_compiled(left, right) if left <= right else 0.0
+    h_px = _covered_compiled(top, bottom)
+    f.left_px[i, t] = left
+    f.right_px[i, t] = right
+    f.top_px[i, t] = top
+    f.bottom_px[i, t] = bottom
     f.width_px[i, t] = w_px
     f.height_px[i, t] = h_px
     area: float = w_px * h_px
@@ -315,9 +361,14 @@ def _sample(targets: TargetTable, camera: CameraModel, f: FrontBuffers, i: int, 
     span = camera.view_span
     r = f.rot[i]
     t = targets.sample_target[s]
+    g = f.gmat[t]
+    along = targets.sample_along[s]
     x = f.diff[i, t, 0] + targets.sample_lateral[s] * f.lateral[i, t, 0]
     y = f.diff[i, t, 1] + targets.sample_lateral[s] * f.lateral[i, t, 1]
     z = f.diff[i, t, 2] + targets.sample_lateral[s] * f.lateral[i, t, 2]
+    x += along * g[0]
+    y += along * g[3]
+    z += along * g[6]
     z += targets.sample_dz[s]
     f.rays[i, s, 0] = x
     f.rays[i, s, 1] = y
@@ -346,7 +397,8 @@ def front(
     With ``every_target`` False, only what costs nothing is filled, for :func:`nearest` to
     compute the rest of the targets it reaches: each target's position (``diff``, ``local``,
     ``bearing``, ``distance``) and in ``candidate`` whether it could be seen *if it were large
-    enough* (in range, not the robot's own, a lit LED, a plate facing the camera).
+    enough* (in range, not the robot's own, a lit LED, a plate whose front or side the camera
+    faces).
     """
     n = f.cam.shape[0]
     n_t = f.centre.shape[0]
@@ -372,9 +424,11 @@ def front(
             ok = dist <= camera.max_range and not targets.own[i, t]
             if t < n and not led_on[t]:
                 ok = False  # a dark LED is not a green target
-            if ok and targets.plate[t]:  # a plate shows only its front
-                g = f.gmat[t]  # its x axis is the plate's normal
-                ok = d0 * g[0] + d1 * g[3] + d2 * g[6] < 0.0
+            if ok and targets.plate[t]:  # a plate shows its front, or its side edge-on
+                g = f.gmat[t]  # its x axis is the plate's normal, its y axis its width
+                in_front = -(d0 * g[0] + d1 * g[3] + d2 * g[6]) > targets.depth_front[t]
+                beside = abs(d0 * g[1] + d1 * g[4] + d2 * g[7]) > targets.half_width[t]
+                ok = in_front or beside
             if every_target:
                 area = _project(targets, camera, f, i, t)
                 ok = ok and area >= targets.min_area[t]
@@ -416,47 +470,59 @@ def front_reference(
     distance = np.hypot(local[..., 0], local[..., 1])
     f.bearing[...] = bearing
     f.distance[...] = distance
-    lat_local = lateral @ rot
-    normal_local = gmat[:, :, 0] @ rot  # (n, T, 3) each target's x axis, camera frame
     view, offset = _view_offset(camera, bearing)
     axis = camera.view_centres[view]
-    # Bearings of four edge points: left and right edges (axis ± lateral half width), front
-    # and back faces (axis ± half depth; a cylinder's depth is 0, which adds exactly 0 width).
-    edge = np.empty((2, 4) + bearing.shape)
-    np.multiply(lat_local[..., 0], targets.half_width, out=edge[0, 0])
-    np.multiply(lat_local[..., 1], targets.half_width, out=edge[1, 0])
-    np.multiply(normal_local[..., 0], targets.half_depth, out=edge[0, 2])
-    np.multiply(normal_local[..., 1], targets.half_depth, out=edge[1, 2])
-    np.negative(edge[:, 0], out=edge[:, 1])
-    np.negative(edge[:, 2], out=edge[:, 3])
-    edge[0] += local[..., 0]
-    edge[1] += local[..., 1]
-    b_edge = np.arctan2(edge[1], edge[0])  # (4, n, T): left, right, front, back
-    wrapped = np.mod(b_edge - axis + math.pi, _TWO_PI) - math.pi
-    u = np.tan(np.clip(wrapped, -camera.edge_clip, camera.edge_clip))
-    du = np.abs(u[0] - u[1])
-    du += np.abs(u[2] - u[3])
+    # The outline's corners (along the normal, across the width axis): a cylinder's two edges
+    # across the line of sight; a plate's front face if the camera is ahead of it, and the
+    # side that stands out of its body if the camera is beside it.
+    normal = gmat[:, :, 0]  # (T, 3) each target's x axis (a plate's normal)
+    x_cam = -(diff * normal[None, :, :]).sum(axis=2)
+    y_cam = -(diff * lateral).sum(axis=2)
+    hw = np.broadcast_to(targets.half_width, bearing.shape)
+    front_face = np.broadcast_to(targets.depth_front, bearing.shape)
+    along = np.zeros((4,) + bearing.shape)
+    across = np.zeros((4,) + bearing.shape)
+    valid = np.zeros((4,) + bearing.shape, dtype=bool)
+    across[0], across[1] = -hw, hw
+    valid[0] = valid[1] = ~plate | (x_cam > front_face)
+    along[0] = along[1] = np.where(plate, front_face, 0.0)
+    along[2] = np.broadcast_to(targets.depth_back, bearing.shape)
+    along[3] = front_face
+    across[2] = across[3] = np.where(y_cam > 0.0, hw, -hw)
+    valid[2] = valid[3] = plate & (np.abs(y_cam) > hw)
+    corner = np.broadcast_to(diff, (4,) + diff.shape).copy()  # (4, n, T, 3), world frame
+    corner[..., :2] += along[..., None] * normal[None, None, :, :2]
+    corner[..., :2] += across[..., None] * lateral[None, :, :, :2]
+    corner_local = corner @ rot[None, ...]
+    b_corner = np.arctan2(corner_local[..., 1], corner_local[..., 0])
+    wrapped = np.mod(b_corner - axis + math.pi, _TWO_PI) - math.pi
+    rel = np.clip(wrapped, -camera.edge_clip, camera.edge_clip)
+    column = view * camera.view_width + (camera.half_tan - np.tan(rel)) * camera.px_per_u
+    left = np.where(valid, column, np.inf).min(axis=0)
+    right = np.where(valid, column, -np.inf).max(axis=0)
     cos_off = np.cos(offset)
     depth_far = np.maximum((distance + targets.rim) * cos_off, 1e-9)
     depth_near = np.maximum((distance - targets.rim) * cos_off, 1e-9)
     v_top = (local[..., 2] + targets.half_height) / depth_far
     v_bot = (local[..., 2] - targets.half_height) / depth_near
-    dv = np.clip(
-        np.minimum(v_top, camera.v_top) - np.maximum(v_bot, camera.v_bottom), 0.0, None
-    )
-    width = np.mod(b_edge[0] - b_edge[1] + math.pi, _TWO_PI) - math.pi
-    f.half_angle[...] = 0.5 * np.abs(width)
-    np.multiply(du, camera.px_per_u, out=f.width_px)
-    np.multiply(dv, camera.px_per_v, out=f.height_px)
+    top = np.clip((camera.v_top - v_top) * camera.px_per_v, 0.0, camera.rows)
+    bottom = np.clip((camera.v_top - v_bot) * camera.px_per_v, 0.0, camera.rows)
+    f.left_px[...] = left
+    f.right_px[...] = right
+    f.top_px[...] = top
+    f.bottom_px[...] = bottom
+    with np.errstate(invalid="ignore"):  # no corner: inf - inf
+        f.width_px[...] = np.where(left <= right, covered(left, right), 0.0)
+    f.height_px[...] = covered(top, bottom)
     np.multiply(f.width_px, f.height_px, out=f.full_area)
     candidate = f.candidate
     np.greater_equal(f.full_area, targets.min_area, out=candidate)
     candidate &= distance <= camera.max_range
     candidate &= ~targets.own
     candidate[:, :n] &= led_on[None, :]  # a dark LED is not a green target
-    # Plates (faces) show only their front: normal (the body's x axis) towards the camera.
-    normal = gmat[plate, :, 0]  # (P, 3) x axis of each plate
-    candidate[:, plate] &= (diff[:, plate, :] * normal[None, :, :]).sum(axis=2) < 0.0
+    # Plates (faces) show their front to a camera ahead of them, their side edge-on to one
+    # beside them.
+    candidate[:, plate] &= (x_cam > front_face)[:, plate] | (np.abs(y_cam) > hw)[:, plate]
     # Occlusion samples: the ray from the camera to each sample point, and whether the point
     # is in the camera's field of view (the elevation band every bearing sees, else the exact
     # per-view frustum test for points very close to the robot).
@@ -464,6 +530,7 @@ def front_reference(
     rays = f.rays
     np.multiply(targets.sample_lateral[None, :, None], lateral[:, st, :], out=rays)
     rays += diff[:, st, :]
+    rays += targets.sample_along[None, :, None] * gmat[st, :, 0][None, :, :]
     rays[..., 2] += targets.sample_dz[None, :]
     ray_local = rays @ rot
     rh = np.maximum(np.hypot(ray_local[..., 0], ray_local[..., 1]), 1e-9)

@@ -16,9 +16,15 @@ What the real CR's vision does, on the simulated image:
    its top edge the far top rim (known height), and a point of known height seen ``v`` below the
    horizon lies at horizontal distance ``Δh·sqrt(1+u²)/v`` (see
    :class:`~cyber_rodent.vision.projection.OmniProjection`). The two edge estimates are
-   combined with weights ``v²`` (the lower edge is more precise); if the bottom edge is cut off
-   by the frame or hidden behind something (its estimate is farther than the top edge's by more
-   than the pixel quantisation allows), the top edge alone is used.
+   combined with weights ``v²`` (the lower edge is more precise). A face plate seen obliquely
+   has its top edge's highest pixel at its far corner and its bottom edge's lowest at its near
+   corner: each edge is placed at the bearing of its own row, and the plate's centre is half
+   way between the two corners.
+   If the bottom edge is cut off by the frame or hidden behind something (its estimate is
+   farther than the top edge's by more than the pixel quantisation allows), the top edge alone
+   is used; if it is nearer than the top edge's by more than that, the blob holds several
+   targets of one colour that touch in the image (a pack peeking out behind another), and its
+   bottom edge, the nearest one's, is used.
 
 Steps 1–3 and the pixel statistics of step 4 run in :mod:`.segmentation_kernels`: an
 OpenCV-built colour look-up table (a pixel's classes are exactly OpenCV's cvtColor + inRange
@@ -163,13 +169,14 @@ class OmniSegmenter:
         robot, cls = blobs.robot, blobs.cls
         area, sin_sum, cos_sum = blobs.area, blobs.sin_sum, blobs.cos_sum
         top, bottom = blobs.top, blobs.bottom
+        top_bearing, bottom_bearing = blobs.top_bearing, blobs.bottom_bearing
         bearing = np.arctan2(sin_sum, cos_sum)
         order = np.lexsort((np.arange(len(robot)), cls, robot))
         battery = cls == BATTERY
         counts = np.bincount(robot[battery], minlength=n)
         extents = lab.extents(bearing, BATTERY) if (counts > 1).any() else None
-        # Per (robot, class): robot, cls, area, sin, cos, top, bottom.
-        out: list[list[Any]] = [[], [], [], [], [], [], []]
+        # Per (robot, class): robot, cls, area, sin, cos, top, bottom, top and bottom bearing.
+        out: list[list[Any]] = [[], [], [], [], [], [], [], [], []]
         start = 0
         while start < len(order):
             i, c = robot[order[start]], cls[order[start]]
@@ -178,27 +185,36 @@ class OmniSegmenter:
                 stop += 1
             idx = order[start:stop]
             a, s, co, t, b = area[idx], sin_sum[idx], cos_sum[idx], top[idx], bottom[idx]
+            tb, bb = top_bearing[idx], bottom_bearing[idx]
             if c == BATTERY and len(idx) > 1 and extents is not None:
                 merged = self._group_stacked(
                     bearing[idx], extents[0][idx], extents[1][idx], t, b
                 )
                 if merged is not None:
                     a, s, co, t, b = _merge_groups(merged, a, s, co, t, b, h)
+                    tb = bb = np.arctan2(s, co)  # a pack's distance needs no edge bearings
             out[0].append(np.full(len(a), i))
             out[1].append(np.full(len(a), c))
-            for j, v in enumerate((a, s, co, t, b)):
+            for j, v in enumerate((a, s, co, t, b, tb, bb)):
                 out[2 + j].append(v)
             start = stop
         if not out[0]:
             return None
-        robot, cls, area, sin_sum, cos_sum, top, bottom = (np.concatenate(v) for v in out)
+        robot, cls, area, sin_sum, cos_sum, top, bottom, top_bearing, bottom_bearing = (
+            np.concatenate(v) for v in out
+        )
         bearing = np.arctan2(sin_sum, cos_sum)
         distance = np.empty(len(robot))
         for c in range(N_CLASSES):
             sel = cls == c
             if sel.any():
                 distance[sel] = self.distance_from_edges(
-                    c, bearing[sel], top[sel].astype(float), bottom[sel].astype(float) + 1.0
+                    c,
+                    bearing[sel],
+                    top[sel].astype(float),
+                    bottom[sel].astype(float) + 1.0,
+                    top_bearing[sel],
+                    bottom_bearing[sel],
                 )
         return robot, cls, bearing, distance, area
 
@@ -222,7 +238,13 @@ class OmniSegmenter:
         return bearing, distance, area
 
     def distance_from_edges(
-        self, cls: int, bearing: np.ndarray, top_edge: np.ndarray, bottom_edge: np.ndarray
+        self,
+        cls: int,
+        bearing: np.ndarray,
+        top_edge: np.ndarray,
+        bottom_edge: np.ndarray,
+        top_bearing: np.ndarray | None = None,
+        bottom_bearing: np.ndarray | None = None,
     ) -> np.ndarray:
         """Horizontal distance of blobs of class ``cls`` from their top and bottom image edges.
 
@@ -232,24 +254,49 @@ class OmniSegmenter:
             top_edge, bottom_edge: (k,) continuous row coordinates of the blobs' upper and
                 lower boundaries (0 = top of the strip; a blob covering rows a..b has edges
                 a and b + 1).
+            top_bearing, bottom_bearing: (k,) rad, where along the blob its top and bottom
+                rows lie (default: ``bearing``). A face plate seen obliquely has its top edge's
+                highest pixel at its far corner and its bottom edge's lowest at its near
+                corner: the two corners, each placed at its own bearing, have the plate's
+                centre half way between them.
         """
         proj = self.projection
         shape = self.geometry.shapes[cls]
         hc = self.geometry.camera_height
-        _, offset = proj.view_coordinates(bearing)
-        u = np.tan(offset)
+        top_bearing = bearing if top_bearing is None else top_bearing
+        bottom_bearing = bearing if bottom_bearing is None else bottom_bearing
         v_top = cast(np.ndarray, proj.v_at_row(top_edge))
         v_bot = cast(np.ndarray, proj.v_at_row(bottom_edge))
         height_top, height_bottom = np.asarray(hc - shape.z_top), np.asarray(hc - shape.z_bottom)
-        d_top = proj.horizontal_distance(height_top, v_top, u) - shape.rim_offset
-        d_bot = proj.horizontal_distance(height_bottom, v_bot, u) + shape.rim_offset
         pixel = 1.0 / proj.px_per_v
+        in_frame = bottom_edge < self.config.height
+        if shape.plate:
+            _, offset_top = proj.view_coordinates(top_bearing)
+            _, offset_bot = proj.view_coordinates(bottom_bearing)
+            d_top = proj.horizontal_distance(height_top, v_top, np.tan(offset_top))
+            d_bot = proj.horizontal_distance(height_bottom, v_bot, np.tan(offset_bot))
+        else:
+            _, offset = proj.view_coordinates(bearing)
+            u = np.tan(offset)
+            d_top = proj.horizontal_distance(height_top, v_top, u) - shape.rim_offset
+            d_bot = proj.horizontal_distance(height_bottom, v_bot, u) + shape.rim_offset
         with np.errstate(divide="ignore", invalid="ignore"):
             tolerance = _EDGE_TOLERANCE_PX * pixel * (1.0 / np.abs(v_top) + 1.0 / np.abs(v_bot))
-            bottom_ok = (bottom_edge < self.config.height) & (d_bot <= d_top * (1.0 + tolerance))
-            w_top, w_bot = v_top**2, v_bot**2
-            both = (w_top * d_top + w_bot * d_bot) / (w_top + w_bot)
-        d = np.where(bottom_ok, both, d_top)
+            if shape.plate:
+                # The two corners' plan positions: as far apart as the plate is wide, at most.
+                x_top, y_top = d_top * np.cos(top_bearing), d_top * np.sin(top_bearing)
+                x_bot, y_bot = d_bot * np.cos(bottom_bearing), d_bot * np.sin(bottom_bearing)
+                chord = np.hypot(x_top - x_bot, y_top - y_bot)
+                slack = 2.0 * shape.half_width + tolerance * d_top
+                agree = in_frame & (chord <= slack)
+                several = in_frame & ~agree & (d_bot < d_top)
+                both = 0.5 * np.hypot(x_top + x_bot, y_top + y_bot)
+            else:
+                agree = in_frame & (np.abs(d_bot - d_top) <= d_top * tolerance)
+                several = in_frame & (d_bot < d_top * (1.0 - tolerance))
+                w_top, w_bot = v_top**2, v_bot**2
+                both = (w_top * d_top + w_bot * d_bot) / (w_top + w_bot)
+        d = np.where(agree, both, np.where(several, d_bot, d_top))
         d = np.where(np.isfinite(d), d, np.inf)
         return np.maximum(d, 0.0)
 
@@ -347,6 +394,8 @@ class Blobs(NamedTuple):
     area: np.ndarray  #: (k,) pixels
     sin_sum: np.ndarray  #: (k,) sum over its pixels of the column bearing's sine
     cos_sum: np.ndarray  #: (k,) and of its cosine
+    top_bearing: np.ndarray  #: (k,) rad, mean bearing of its top row's pixels
+    bottom_bearing: np.ndarray  #: (k,) rad, and of its bottom row's
 
 
 class Labeller:
@@ -402,7 +451,7 @@ class Labeller:
             cls=np.empty(capacity, dtype=np.int64),
             parent=np.empty(capacity, dtype=np.int64),
             comp=np.empty(capacity, dtype=np.int64),
-            comp_stats=np.empty((capacity, 3), dtype=np.float64),
+            comp_stats=np.empty((capacity, 7), dtype=np.float64),
             comp_ints=np.empty((capacity, 4), dtype=np.int64),
         )
         self.extent_buffers = kernels.Extents(
@@ -436,6 +485,8 @@ class Labeller:
             area=stats[:, 0].copy(),
             sin_sum=stats[:, 1].copy(),
             cos_sum=stats[:, 2].copy(),
+            top_bearing=np.arctan2(stats[:, 3], stats[:, 4]),
+            bottom_bearing=np.arctan2(stats[:, 5], stats[:, 6]),
         )
 
     def extents(self, bearing: np.ndarray, cls: int) -> tuple[np.ndarray, np.ndarray]:

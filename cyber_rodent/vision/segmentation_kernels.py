@@ -81,7 +81,9 @@ class Runs(NamedTuple):
     cls: Ints  #: its class
     parent: Ints  #: union-find parent; after :func:`label`, its root run
     comp: Ints  #: after :func:`label`, its component
-    comp_stats: Floats  #: (capacity, 3) per component: area, sums of sin and cos of bearing
+    #: (capacity, 7) per component: area, sums of sin and cos of bearing over its pixels, then
+    #: the same two sums over its top row's pixels and over its bottom row's
+    comp_stats: Floats
     comp_ints: Ints  #: (capacity, 4) per component: robot, class, top and bottom row
 
 
@@ -270,6 +272,8 @@ def label(rgb: Bytes, table: ClassTable, strip: StripBuffers, runs: Runs) -> tup
             comp_stats[k, 0] = 0.0  # area
             comp_stats[k, 1] = 0.0  # sum of sin(column bearing)
             comp_stats[k, 2] = 0.0  # sum of cos(column bearing)
+            for q in range(3, 7):  # the same sums over the top row and the bottom row
+                comp_stats[k, q] = 0.0
             k += 1
         parent[i] = root
         run_comp[i] = comp_of_root[root]
@@ -280,14 +284,22 @@ def label(rgb: Bytes, table: ClassTable, strip: StripBuffers, runs: Runs) -> tup
         i = order[j]
         g = run_comp[i]
         row = run_row[i] % height
-        if row < comp_ints[g, 2]:
-            comp_ints[g, 2] = row
+        # Rows come in increasing order per component: its first row is its top row.
         if row > comp_ints[g, 3]:
             comp_ints[g, 3] = row
+            comp_stats[g, 5] = 0.0
+            comp_stats[g, 6] = 0.0
+        at_top, at_bottom = row == comp_ints[g, 2], row == comp_ints[g, 3]
         for x in range(run_c0[i], run_c1[i] + 1):
             comp_stats[g, 0] += 1.0
             comp_stats[g, 1] += sin_col[x]
             comp_stats[g, 2] += cos_col[x]
+            if at_top:
+                comp_stats[g, 3] += sin_col[x]
+                comp_stats[g, 4] += cos_col[x]
+            if at_bottom:
+                comp_stats[g, 5] += sin_col[x]
+                comp_stats[g, 6] += cos_col[x]
     return n, k
 
 
@@ -395,6 +407,12 @@ def label_reference(
     runs.comp_stats[:k, 0] = np.bincount(pixel_comp, minlength=k)
     runs.comp_stats[:k, 1] = np.bincount(pixel_comp, weights=strip.sin_col[pixel_col], minlength=k)
     runs.comp_stats[:k, 2] = np.bincount(pixel_comp, weights=strip.cos_col[pixel_col], minlength=k)
+    pixel_row = np.repeat(in_strip, length)
+    for q, edge in ((3, top), (5, bottom)):
+        on_edge = pixel_row == edge[pixel_comp]
+        comp, col = pixel_comp[on_edge], pixel_col[on_edge]
+        runs.comp_stats[:k, q] = np.bincount(comp, weights=strip.sin_col[col], minlength=k)
+        runs.comp_stats[:k, q + 1] = np.bincount(comp, weights=strip.cos_col[col], minlength=k)
     return n, k
 
 

@@ -14,7 +14,7 @@ face plate, the battery pack's cylinder axis. Bearing is measured to the same ax
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 
@@ -28,15 +28,21 @@ class TargetShape:
 
     A target is either a vertical cylinder (LED ring, pack) or a flat plate facing along the
     body's x axis (face). Seen from a camera above it, a cylinder's silhouette spans from its
-    near bottom rim to its far top rim.
+    near bottom rim to its far top rim. A plate is a thin box standing proud of its body: its
+    front face is seen from the front, and the strip of its sides that stands out of the body
+    is seen edge-on, from the side (the rendered camera sees that red edge too).
 
     Attributes:
         cls: colour class.
         plate: True for a flat plate, False for a vertical cylinder.
         half_width: m, cylinder radius or half the plate's width.
         z_bottom, z_top: m, height of the coloured part above the floor.
-        half_depth: m, half the plate's thickness (0 for cylinders): a face seen at a
-            grazing angle shows its edge too.
+        depth_front: m, the plate's front face ahead of its centre (0 for cylinders).
+        depth_back: m, where the part of its sides that stands out of the body begins,
+            relative to its centre (negative: behind it; 0 for cylinders).
+        gap_bottom, gap_top: m above the floor, a grey band that cuts the coloured part in
+            two (a pack's electrode ring; both 0 if none).
+        gap_radius: m, that band's radius (it stands out of the cylinder).
         rim_offset: m, how much nearer (bottom) / farther (top) than the target's axis the
             silhouette's bottom and top edges lie (the radius for cylinders, 0 for plates).
     """
@@ -46,7 +52,11 @@ class TargetShape:
     half_width: float
     z_bottom: float
     z_top: float
-    half_depth: float = 0.0
+    depth_front: float = 0.0
+    depth_back: float = 0.0
+    gap_bottom: float = 0.0
+    gap_top: float = 0.0
+    gap_radius: float = 0.0
 
     @property
     def rim_offset(self) -> float:
@@ -111,17 +121,33 @@ def target_geometry(world: World) -> TargetGeometry:
         raise ValueError("vision expects the face geom to be a box")
     half_d, half_w, half_h = (float(s) for s in m.geom_size[face_geom])
     zc = _geom_height_above_floor(m, face_geom)
+    # The face's sides show only where they stand out of the chassis's front face.
+    chassis = int(world.chassis_geom[0])
+    if m.geom_bodyid[chassis] != m.geom_bodyid[face_geom]:
+        raise ValueError("vision expects the face on the chassis body")
+    chassis_front = float(m.geom_pos[chassis, 0] + m.geom_size[chassis, 0])
+    face_x = float(m.geom_pos[face_geom, 0])
     face = TargetShape(
         cls=FACE,
         plate=True,
         half_width=half_w,
         z_bottom=zc - half_h,
         z_top=zc + half_h,
-        half_depth=half_d,
+        depth_front=half_d,
+        depth_back=min(max(chassis_front - face_x, -half_d), half_d),
     )
     led = cylinder(LED, int(world.led_geom[0]))
     if len(world.pack_geom):
         pack = cylinder(BATTERY, int(world.pack_geom[0]))
+        ring = int(world.electrode_geom[0])
+        ring_z = _geom_height_above_floor(m, ring)
+        ring_half = float(m.geom_size[ring, 1])
+        pack = replace(
+            pack,
+            gap_bottom=ring_z - ring_half,
+            gap_top=ring_z + ring_half,
+            gap_radius=float(m.geom_size[ring, 0]),
+        )
     else:  # no packs in this world: a placeholder that is never looked for
         pack = TargetShape(cls=BATTERY, plate=False, half_width=0.04, z_bottom=0.0, z_top=0.1)
     return TargetGeometry(camera_height=cam_z, shapes=(led, face, pack))
