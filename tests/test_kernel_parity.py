@@ -707,12 +707,12 @@ def test_stacked_pair_test_kernel_matches_reference() -> None:
         half = rng.uniform(0.01, 0.1, k)
         lo, hi = -half * rng.uniform(0.8, 1.2, k), half * rng.uniform(0.8, 1.2, k)
         top = rng.integers(0, 100, k)
-        bottom = top + rng.integers(0, 20, k)
+        bottom = top + rng.integers(0, 20, k)  # some touch the strip's bottom row, 110
         parents = []
         joined = []
         for fn in (segmentation_kernels.join_stacked, segmentation_kernels.join_stacked_reference):
             parent = np.arange(k)
-            joined.append(fn(bearing, lo, hi, top, bottom, parent))
+            joined.append(fn(bearing, lo, hi, top, bottom, parent, 111, 0.005))
             while not np.array_equal(parent[parent], parent):
                 parent = parent[parent]
             parents.append(parent)

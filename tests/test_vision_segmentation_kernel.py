@@ -105,7 +105,7 @@ def _opencv_blobs(seg: OmniSegmenter, mask: np.ndarray, cls: int) -> tuple[np.nd
         half_px = math.pi / width
         pair = np.arange(k)
         if kernels.join_stacked_reference(
-            bearing, -(right + half_px), left + half_px, top, bottom, pair
+            bearing, -(right + half_px), left + half_px, top, bottom, pair, height, 2 * half_px
         ):
             _, group = np.unique(_roots(pair), return_inverse=True)
             m = int(group.max()) + 1

@@ -6,10 +6,10 @@ What the real CR's vision does, on the simulated image:
    around hue 0.
 2. Connected components (8-connectivity) of each mask, per robot. A strip is a full circle, so a
    blob cut by the strip's left/right edge is joined back into one.
-3. Battery packs only: the grey electrode ring cuts a pack's blue into an upper and a lower band.
-   Components that overlap in bearing, have similar widths and are separated vertically by less
-   than the taller one's height are grouped into one target (see
-   :func:`~cyber_rodent.vision.segmentation_kernels.join_stacked`).
+3. Battery packs only: the grey electrode ring cuts a pack's blue into an upper and a lower band
+   (and a nearer chassis may hide its middle, or the frame's bottom cut off its lower band).
+   Components that overlap in bearing, the lower no wider than the upper, are grouped into one
+   target (see :func:`~cyber_rodent.vision.segmentation_kernels.join_stacked`).
 4. Per blob: **pixel area**; **bearing** = circular mean of its pixels' column bearings;
    **distance** from image geometry with the camera height, as a real omni camera allows: the
    blob's bottom edge is the target's near bottom rim (known height, e.g. the floor for a pack),
@@ -308,14 +308,15 @@ class OmniSegmenter:
         top: np.ndarray,
         bottom: np.ndarray,
     ) -> np.ndarray | None:
-        """Group blobs stacked vertically at the same bearing (a pack cut by its electrode ring).
+        """Group blobs stacked vertically at the same bearing: one pack cut in two by its
+        electrode ring, by something nearer that hides its middle, or with its lower band cut
+        off by the bottom of the frame.
 
-        The two bands of one pack have the same angular width (same cylinder, same distance)
-        and the ring between them is shorter than the taller band; the pair test is
-        :func:`~cyber_rodent.vision.segmentation_kernels.join_stacked`. A farther pack seen
-        *above* a nearer one without touching it must be more than 2.4 times as far (its bottom
-        rim, 17 cm below the camera, has to appear above the near pack's top, 7 cm below),
-        hence at most 41 % as wide: it stays separate.
+        The bands of one pack have the same angular width (same cylinder, same distance); the
+        pair test is :func:`~cyber_rodent.vision.segmentation_kernels.join_stacked`. A farther
+        pack seen *above* a nearer one without touching it must be more than 2.4 times as far
+        (its bottom rim, 17 cm below the camera, has to appear above the near pack's top, 7 cm
+        below), hence at most 41 % as wide: it stays separate.
 
         Args:
             bearing: (k,) mean bearings; lo, hi: bearing interval relative to the mean (rad);
@@ -328,7 +329,8 @@ class OmniSegmenter:
         joined = self._join_stacked(
             np.asarray(bearing, dtype=np.float64), np.asarray(lo, dtype=np.float64),
             np.asarray(hi, dtype=np.float64), np.asarray(top, dtype=np.int64),
-            np.asarray(bottom, dtype=np.int64), parent,
+            np.asarray(bottom, dtype=np.int64), parent, self.config.height,
+            2.0 * math.pi / self.config.strip_width,
         )  # fmt: skip
         return _roots(parent) if joined else None
 

@@ -476,16 +476,28 @@ def extents_reference(runs: Runs, strip: StripBuffers, ext: Extents) -> None:
 
 @jit
 def join_stacked(
-    bearing: Floats, lo: Floats, hi: Floats, top: Ints, bottom: Ints, parent: Ints
-) -> bool:
-    """Union, in ``parent``, every pair of blobs that are one pack's two bands; says whether
-    any pair was joined (compiled: it is O(k²) in the blobs).
+    bearing: Floats, lo: Floats, hi: Floats, top: Ints, bottom: Ints, parent: Ints,
+    height: int, pixel: float,
+) -> bool:  # fmt: skip
+    """Union, in ``parent``, every pair of blobs that are parts of one pack; says whether any
+    pair was joined (compiled: it is O(k²) in the blobs).
 
-    Two blobs are joined when their bearing intervals (``lo``/``hi`` relative to the mean
-    ``bearing``) overlap by at least 70 % of the narrower one's width, the narrower is at least
-    45 % as wide as the wider, and the vertical gap between their rows (``top``/``bottom``) is
-    smaller than the taller one's height. Unions link the larger root under the smaller, so a
-    set's root is its smallest blob whatever the order of the unions.
+    Of two blobs, the upper one (smaller ``top``) and the lower one are parts of one pack when
+    their bearing intervals (``lo``/``hi`` relative to the mean ``bearing``) overlap by at least
+    70 % of the narrower one's width, the lower one is no wider than the upper one (by 20 % and
+    a ``pixel``: a wider blob below is a nearer pack), and either
+
+    * the vertical gap between their rows is smaller than the taller one's height (the pack's
+      own electrode ring between its bands; the upper one may be wider when packs that touch
+      in the image merged above their rings),
+    * the lower one is at least 70 % as wide, whatever the gap (something nearer, a chassis,
+      hides the pack's middle: the bands of one pack have one width, while two packs at one
+      bearing and one width would stand in one place), or
+    * the lower one touches the strip's bottom row (``height`` rows): a pack touching the
+      robot shows its lower band cut off by the frame.
+
+    Unions link the larger root under the smaller, so a set's root is its smallest blob
+    whatever the order of the unions.
     """
     k = bearing.shape[0]
     joined = False
@@ -495,12 +507,21 @@ def join_stacked(
             shift = d - _TWO_PI * np.rint(d / _TWO_PI)  # wrapped to [-π, π]
             overlap = min(hi[a], shift + hi[b]) - max(lo[a], shift + lo[b])
             wa, wb = hi[a] - lo[a], hi[b] - lo[b]
-            narrow, wide = min(wa, wb), max(wa, wb)
-            if overlap < 0.7 * narrow or narrow < 0.45 * wide:
+            if overlap < 0.7 * min(wa, wb):
+                continue
+            up, w_up, w_low = a, wa, wb
+            low = b
+            if top[b] < top[a]:
+                up, low, w_up, w_low = b, a, wb, wa
+            if w_low > 1.2 * w_up + pixel:
                 continue
             gap = max(top[a], top[b]) - min(bottom[a], bottom[b]) - 1
-            if gap < max(bottom[a] - top[a] + 1, bottom[b] - top[b] + 1):
-                ra, rb = a, b
+            tall = max(bottom[a] - top[a] + 1, bottom[b] - top[b] + 1)
+            ring = gap < tall
+            hidden_middle = w_low >= 0.7 * w_up
+            cut = bottom[low] >= height - 1
+            if ring or hidden_middle or cut:
+                ra, rb = up, low
                 while parent[ra] != ra:
                     ra = parent[ra]
                 while parent[rb] != rb:
@@ -512,8 +533,9 @@ def join_stacked(
 
 
 def join_stacked_reference(
-    bearing: Floats, lo: Floats, hi: Floats, top: Ints, bottom: Ints, parent: Ints
-) -> bool:
+    bearing: Floats, lo: Floats, hi: Floats, top: Ints, bottom: Ints, parent: Ints,
+    height: int, pixel: float,
+) -> bool:  # fmt: skip
     """:func:`join_stacked` in numpy (the reference): the pair test on all pairs at once."""
     d = bearing[None, :] - bearing[:, None]  # [a, b]: bearing[b] - bearing[a]
     shift = d - _TWO_PI * np.rint(d / _TWO_PI)
@@ -522,11 +544,17 @@ def join_stacked_reference(
     )
     width = hi - lo
     narrow = np.minimum(width[:, None], width[None, :])
-    wide = np.maximum(width[:, None], width[None, :])
+    b_up = top[None, :] < top[:, None]  # [a, b]: b is the upper one
+    w_up = np.where(b_up, width[None, :], width[:, None])
+    w_low = np.where(b_up, width[:, None], width[None, :])
+    bottom_low = np.where(b_up, bottom[:, None], bottom[None, :])
     gap = np.maximum(top[:, None], top[None, :]) - np.minimum(bottom[:, None], bottom[None, :]) - 1
     tall = bottom - top + 1
-    similar = ~((overlap < 0.7 * narrow) | (narrow < 0.45 * wide))
-    pairs = np.triu(similar & (gap < np.maximum(tall[:, None], tall[None, :])), 1)
+    ring = gap < np.maximum(tall[:, None], tall[None, :])
+    hidden_middle = w_low >= 0.7 * w_up
+    cut = bottom_low >= height - 1
+    ok = ~(overlap < 0.7 * narrow) & ~(w_low > 1.2 * w_up + pixel)
+    pairs = np.triu(ok & (ring | hidden_middle | cut), 1)
     first, second = np.nonzero(pairs)
     for a, b in zip(first.tolist(), second.tolist(), strict=True):
         ra, rb = a, b
