@@ -62,6 +62,10 @@ class TargetComparison:
 DISTANCE_TOLERANCE = 0.5
 #: Bearing window beyond a target's angular half width: max(2°, 2 pixels).
 BEARING_MARGIN_DEG = 2.0
+#: Relative distance error that costs as much as a bearing error of the whole window: a
+#: rendered distance is good to a few percent, while a blob that holds several touching
+#: targets has its bearing between them and the nearest one's distance.
+DISTANCE_SCALE = 0.1
 
 
 def match_blobs(
@@ -76,9 +80,9 @@ def match_blobs(
     A (target, blob) pair is possible when the blob's bearing is within the target's angular
     half width plus max(2°, 2 px) of the target's bearing and its distance within
     :data:`DISTANCE_TOLERANCE` of the target's. Pairs are taken greedily, the smallest
-    ``(bearing error / window)² + (relative distance error / tolerance)²`` first (ties: lower
-    target, then lower blob index), whatever either provider said about visibility, so the
-    matcher favours neither.
+    ``(bearing error / window)² + (relative distance error / DISTANCE_SCALE)²`` first (ties:
+    lower target, then lower blob index), whatever either provider said about visibility, so
+    the matcher favours neither.
 
     Args:
         bearing, distance, half_width: (T,) each target's true bearing (rad), horizontal
@@ -100,7 +104,7 @@ def match_blobs(
     err_b = np.abs(np.remainder(turn, 2 * math.pi) - math.pi)
     err_d = np.abs(b_dist[None, :] - distance[:, None]) / safe[:, None]
     ok = (err_b <= window[:, None]) & (err_d <= DISTANCE_TOLERANCE)
-    cost = (err_b / window[:, None]) ** 2 + (err_d / DISTANCE_TOLERANCE) ** 2
+    cost = (err_b / window[:, None]) ** 2 + (err_d / DISTANCE_SCALE) ** 2
     t_idx, b_idx = np.nonzero(ok)
     order = np.lexsort((b_idx, t_idx, cost[t_idx, b_idx]))
     used = np.zeros(len(blobs), dtype=bool)

@@ -395,9 +395,10 @@ class GeometricVision:
         one's distance), so only the nearest target of each connected group is reported. Two
         targets' blobs touch when their pixel footprints (``front``'s covered columns and rows)
         overlap or are 8-neighbours, and the farther one is either wholly in view or hidden in
-        part only by targets of its own colour (or its own body: a pack's ring): if something
-        else hides it (a chassis corner between two faces), that occluder may stand between
-        their pixels, and they stay apart.
+        part only by targets of its own colour, by its own body (a pack's ring) or by the nearer
+        target's body (the post an LED ring surrounds): if something else hides it (a third
+        robot's chassis between two faces), that occluder may stand between their pixels, and
+        they stay apart.
         A pack whose visible part above a nearer pack starts with its own grey electrode ring is
         cut off by it, and stays apart too. Groups are joined transitively, as pixels are.
         """
@@ -430,6 +431,7 @@ class GeometricVision:
                     continue
                 own = sample_target == b
                 occluded = own & self.front.sample_ok[i] & hidden_by_other[i]
+                occluded &= m.geom_bodyid[hit[i]] != m.geom_bodyid[self.target_geom[a]]
                 if visible_share[i, b] < 1.0 and occluded.any():
                     continue  # something of another colour hides part of it
                 cols_b = (left[i, b] - shift, right[i, b] - shift)

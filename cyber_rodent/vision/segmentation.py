@@ -288,8 +288,12 @@ class OmniSegmenter:
                 x_bot, y_bot = d_bot * np.cos(bottom_bearing), d_bot * np.sin(bottom_bearing)
                 chord = np.hypot(x_top - x_bot, y_top - y_bot)
                 slack = 2.0 * shape.half_width + tolerance * d_top
-                agree = in_frame & (chord <= slack)
-                several = in_frame & ~agree & (d_bot < d_top)
+                # Its bottom edge is seen if it lies no higher than a plate's whose top edge is
+                # where this one's is (seen obliquely, the near corner's bottom lies lower).
+                lowest = -height_bottom * np.sqrt(1.0 + np.tan(offset_top) ** 2) / d_top
+                bottom_seen = in_frame & (v_bot <= lowest + _EDGE_TOLERANCE_PX * pixel)
+                agree = bottom_seen & (chord <= slack)
+                several = bottom_seen & ~agree & (d_bot < d_top)
                 both = 0.5 * np.hypot(x_top + x_bot, y_top + y_bot)
             else:
                 agree = in_frame & (np.abs(d_bot - d_top) <= d_top * tolerance)
