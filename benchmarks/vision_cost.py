@@ -2,8 +2,9 @@
 
 Part 1, cost: a 4-robot, 5-pack world in ``--states`` random states (``World.reset``, all LEDs
 on); each state is observed ``--repeats`` times by each provider. Reported per control step (one
-observation of all 4 robots): the geometric provider (``observe`` and the allocation-free
-``measure_targets`` the evolution runner uses), the rendered provider split into rendering (one
+observation of all 4 robots): the geometric provider (``observe``, its full pass
+``measure_targets``, and the lazy ``nearest_targets`` the evolution runner uses), the rendered
+provider split into rendering (one
 scene update, 16 tiles, one pixel read) and segmentation, and, for scale, 10 physics substeps.
 
 Part 2, detection range: two robots alone in the field, the target's LED on. The observer sits
@@ -46,6 +47,7 @@ def cost(config: CameraConfig, n_states: int, repeats: int, seed: int) -> dict:
     totals = {
         "geometric_observe": 0.0,
         "geometric_measure": 0.0,
+        "geometric_nearest": 0.0,
         "render": 0.0,
         "segment": 0.0,
         "rendered_observe": 0.0,
@@ -58,6 +60,7 @@ def cost(config: CameraConfig, n_states: int, repeats: int, seed: int) -> dict:
             ren.observe()  # warm up
             totals["geometric_observe"] += _per_call_ms(geo.observe, repeats * 20)
             totals["geometric_measure"] += _per_call_ms(geo.measure_targets, repeats * 20)
+            totals["geometric_nearest"] += _per_call_ms(geo.nearest_targets, repeats * 200)
             totals["render"] += _per_call_ms(ren.renderer.render, repeats)
             strips = ren.renderer.render().copy()
             totals["segment"] += _per_call_ms(lambda s=strips: ren.segmenter.detect(s), repeats)
@@ -126,6 +129,9 @@ def main() -> None:
         default=None,
         help="comma-separated WxH per view, e.g. 128x192,256x384",
     )
+    ap.add_argument(
+        "--cost-only", action="store_true", help="skip part 2 (the LED detection range)"
+    )
     args = ap.parse_args()
     resolutions = RESOLUTIONS
     if args.resolutions:
@@ -137,7 +143,7 @@ def main() -> None:
     print("cost per control step, 4 robots + 5 packs, ms (mean over states):")
     print(
         f"  {'camera (per view)':18s} {'render':>7s} {'segment':>8s} {'rendered':>9s} "
-        f"{'geo observe':>12s} {'geo measure':>12s} {'physics':>8s}"
+        f"{'geo observe':>12s} {'geo measure':>12s} {'geo nearest':>12s} {'physics':>8s}"
     )
     for w, h in resolutions:
         config = CameraConfig(view_width=w, height=h)
@@ -146,8 +152,11 @@ def main() -> None:
         print(
             f"  {f'{w} x {h}{mark}':18s} {c['render']:7.2f} {c['segment']:8.2f} "
             f"{c['rendered_observe']:9.2f} {c['geometric_observe']:12.3f} "
-            f"{c['geometric_measure']:12.3f} {c['physics_10_substeps']:8.3f}"
+            f"{c['geometric_measure']:12.3f} {c['geometric_nearest']:12.4f} "
+            f"{c['physics_10_substeps']:8.3f}"
         )
+    if args.cost_only:
+        return
     print(
         f"\nLED detection rate by distance (m), rendered provider ({args.trials} random "
         "placements each; geometric in brackets):"
