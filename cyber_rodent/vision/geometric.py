@@ -400,15 +400,21 @@ class GeometricVision:
 
         Colour segmentation cannot separate touching blobs of one colour (two packs side by
         side, or a pack peeking out behind another, make one blue blob, measured at the nearer
-        one's distance), so only the nearest target of each connected group is reported. Two
-        targets' blobs touch when their pixel footprints (``front``'s covered columns and rows)
-        overlap or are 8-neighbours, and the farther one is either wholly in view or hidden in
-        part only by targets of its own colour, by its own body (a pack's ring) or by the nearer
-        target's body (the post an LED ring surrounds): if something else hides it (a third
-        robot's chassis between two faces), that occluder may stand between their pixels, and
-        they stay apart.
-        A pack whose visible part above a nearer pack starts with its own grey electrode ring is
-        cut off by it, and stays apart too. Groups are joined transitively, as pixels are.
+        one's distance), so only the nearest target of each connected group is reported. The
+        farther target b of a pair joins the nearer a when
+
+        * their pixel footprints (``front``'s covered columns and rows) overlap or are
+          8-neighbours; seen from above, a cylinder's top edge is the upper half of its top
+          rim's ellipse and its bottom edge the lower half of its bottom rim's, so the corners
+          of its box are empty. A pack's part that must touch is its upper band: below it, its
+          own grey electrode ring cuts it off, so a pack whose lower band alone touches a nearer
+          pack still shows its upper band as a blob of its own;
+        * b is wholly in view, or hidden in part only by targets of its colour, by its own body
+          (a pack's ring) or by a's body (the post an LED ring surrounds): if something else
+          hides it (a third robot's chassis between two faces), that occluder may stand between
+          their pixels, and they stay apart.
+
+        Groups are joined transitively, as pixels are.
         """
         merged = np.zeros_like(seen)
         robot, a, b = np.nonzero(self._merge_pairs(seen, distance))
@@ -416,16 +422,13 @@ class GeometricVision:
             return merged
         f = self.front
         width = float(self.config.strip_width)
-        # First and last covered column and row; b's columns moved by a strip's width if the
-        # two lie across the strip's wrap.
-        left_a, right_a = np.ceil(f.left_px[robot, a] - 0.5), np.floor(f.right_px[robot, a] - 0.5)
-        left_b, right_b = np.ceil(f.left_px[robot, b] - 0.5), np.floor(f.right_px[robot, b] - 0.5)
-        shift = width * np.round(((left_b + right_b) - (left_a + right_a)) / (2.0 * width))
-        left_b, right_b = left_b - shift, right_b - shift
-        top_a, bottom_a = np.ceil(f.top_px[robot, a] - 0.5), np.floor(f.bottom_px[robot, a] - 0.5)
-        top_b, bottom_b = np.ceil(f.top_px[robot, b] - 0.5), np.floor(f.bottom_px[robot, b] - 0.5)
-        touch = (left_b <= right_a + 1) & (left_a <= right_b + 1)
-        touch &= (top_b <= bottom_a + 1) & (top_a <= bottom_b + 1)
+        # b's columns, moved by a strip's width if the two lie across the strip's wrap.
+        mid_a = f.left_px[robot, a] + f.right_px[robot, a]
+        mid_b = f.left_px[robot, b] + f.right_px[robot, b]
+        shift = width * np.round((mid_b - mid_a) / (2.0 * width))
+        box_a = (f.left_px[robot, a], f.right_px[robot, a], f.top_px[robot, a])
+        box_b = (f.left_px[robot, b] - shift, f.right_px[robot, b] - shift, f.top_px[robot, b])
+        touch = self._footprints_touch(robot, a, b, local, distance, box_a, box_b)
         # Something of another colour hides part of b: its own samples' first hits.
         samples = self._sample_table[b]  # (P, K), -1 padded
         valid = samples >= 0
@@ -442,7 +445,6 @@ class GeometricVision:
         foreign &= body != self._target_body[b][:, None]
         foreign &= body != self._target_body[a][:, None]
         apart = (visible_share[robot, b] < 1.0) & foreign.any(axis=1)
-        apart |= self._cut_by_gap(robot, a, b, local, distance, (left_a, right_a, left_b, right_b))
         edges = touch & ~apart
         for i in np.unique(robot[edges]):
             group = np.arange(seen.shape[1])
@@ -457,44 +459,78 @@ class GeometricVision:
                 merged[i, members[members != nearest]] = True
         return merged
 
+    def _footprints_touch(
+        self,
+        i: np.ndarray,
+        a: np.ndarray,
+        b: np.ndarray,
+        local: np.ndarray,
+        distance: np.ndarray,
+        box_a: tuple[np.ndarray, np.ndarray, np.ndarray],
+        box_b: tuple[np.ndarray, np.ndarray, np.ndarray],
+    ) -> np.ndarray:
+        """Per pair: whether a's footprint and b's (its upper band, for a pack) touch.
+
+        ``box_a``, ``box_b``: left and right column edges and top row edge (b's columns moved
+        into a's turn of the strip)."""
+        f, proj = self.front, self.projection
+        hh, r = self.targets.half_height, self.targets.rim
+        plate = self.targets.plate
+
+        def rim_row(t: np.ndarray, dz: np.ndarray | float, rim: np.ndarray | float) -> np.ndarray:
+            """Row of the point ``dz`` above target t's centre on its rim ``rim`` farther."""
+            _, offset = proj.view_coordinates(f.bearing[i, t])
+            depth = np.maximum((distance[i, t] + rim) * np.cos(offset), 1e-9)
+            return np.asarray((proj.v_top - (local[i, t, 2] + dz) / depth) * proj.px_per_v)
+
+        left_a, right_a, top_a = box_a
+        left_b, right_b, top_b = box_b
+        bottom_a = f.bottom_px[i, a]
+        # b's lowest part that counts, and the half height of the ellipse that bounds it.
+        bottom_b = f.bottom_px[i, b].copy()
+        bottom_half_b = 0.5 * (bottom_b - rim_row(b, -hh[b], r[b]))
+        shape = self.geometry.shapes[BATTERY]
+        banded = (self.target_cls[b] == BATTERY) & (shape.gap_top > shape.gap_bottom)
+        if banded.any():
+            centre = 0.5 * (shape.z_bottom + shape.z_top)
+            dz = shape.gap_top - centre
+            near = rim_row(b, dz, -shape.gap_radius)
+            far = rim_row(b, dz, shape.gap_radius)
+            bottom_b = np.where(banded, np.minimum(near, bottom_b), bottom_b)
+            bottom_half_b = np.where(banded, 0.5 * (near - far), bottom_half_b)
+        bottom_half_b = np.where(plate[b], 0.0, np.maximum(bottom_half_b, 0.0))
+        top_half_a = np.where(plate[a], 0.0, 0.5 * (rim_row(a, hh[a], -r[a]) - top_a))
+        top_half_a = np.maximum(top_half_a, 0.0)
+        # Covered pixels (centres at k + 0.5) touch when their index ranges overlap or abut.
+        cols = (np.ceil(left_b - 0.5) <= np.floor(right_a - 0.5) + 1) & (
+            np.ceil(left_a - 0.5) <= np.floor(right_b - 0.5) + 1
+        )
+        rows = (np.ceil(top_b - 0.5) <= np.floor(bottom_a - 0.5) + 1) & (
+            np.ceil(top_a - 0.5) <= np.floor(bottom_b - 0.5) + 1
+        )
+        touch = cols & rows
+        # Where b lies above a over common columns, the ellipses decide.
+        low, high = np.maximum(left_a, left_b), np.minimum(right_a, right_b)
+        above = touch & (top_b < top_a) & (low <= high)
+        centre_a, centre_b = 0.5 * (left_a + right_a), 0.5 * (left_b + right_b)
+        half_a = np.maximum(0.5 * (right_a - left_a), 1e-9)
+        half_b = np.maximum(0.5 * (right_b - left_b), 1e-9)
+        gap = np.full(len(i), np.inf)
+        for x in (low, high, np.clip(centre_a, low, high), np.clip(centre_b, low, high)):
+            sag_a = 1.0 - np.sqrt(np.clip(1.0 - ((x - centre_a) / half_a) ** 2, 0.0, 1.0))
+            sag_b = 1.0 - np.sqrt(np.clip(1.0 - ((x - centre_b) / half_b) ** 2, 0.0, 1.0))
+            edge_a = top_a + top_half_a * sag_a
+            edge_b = bottom_b - bottom_half_b * sag_b
+            gap = np.minimum(gap, np.ceil(edge_a - 0.5) - np.floor(edge_b - 0.5))
+        touch &= ~above | (gap <= 1.0)
+        return np.asarray(touch)
+
     def _merge_pairs(self, seen: np.ndarray, distance: np.ndarray) -> np.ndarray:
         """[i, a, b]: both seen by robot i, the same colour, a nearer than b."""
         pairs: np.ndarray = seen[:, :, None] & seen[:, None, :]
         pairs &= self._same_class[None, :, :]
         pairs &= distance[:, :, None] < distance[:, None, :]
         return pairs
-
-    def _cut_by_gap(
-        self,
-        robot: np.ndarray,
-        a: np.ndarray,
-        b: np.ndarray,
-        local: np.ndarray,
-        distance: np.ndarray,
-        columns: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    ) -> np.ndarray:
-        """Per pair: whether the part of target b just above nearer target a is b's grey band
-        (a pack's electrode ring), with nothing of b beside a: then b's colour does not touch
-        a's. ``columns``: a's and b's first and last covered columns."""
-        out = np.zeros(len(robot), dtype=bool)
-        shape = self.geometry.shapes[BATTERY]
-        sel = (self.target_cls[b] == BATTERY) & (shape.gap_top > shape.gap_bottom)
-        left_a, right_a, left_b, right_b = columns
-        sel &= (left_b >= left_a) & (right_b <= right_a)  # nothing of b beside a
-        if not sel.any():
-            return out
-        i, a, b = robot[sel], a[sel], b[sel]
-        proj = self.projection
-        _, offset = proj.view_coordinates(self.front.bearing[i, b])
-        depth = np.maximum((distance[i, b] - shape.gap_radius) * np.cos(offset), 1e-9)
-        centre = 0.5 * (shape.z_bottom + shape.z_top)
-        row_top, row_bottom = (
-            (proj.v_top - (local[i, b, 2] + z - centre) / depth) * proj.px_per_v
-            for z in (shape.gap_top, shape.gap_bottom)
-        )
-        edge = self.front.top_px[i, a]
-        out[sel] = (row_top <= edge) & (edge <= row_bottom)
-        return out
 
 
 def _root(parent: np.ndarray, a: int) -> int:
