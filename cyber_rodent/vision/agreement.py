@@ -74,6 +74,7 @@ def match_blobs(
     half_width: np.ndarray,
     blobs: list[Blob],
     px_angle: float,
+    spread: np.ndarray | None = None,
 ) -> np.ndarray:
     """Pair one robot's blobs of one class with the true targets of that class, one to one.
 
@@ -89,6 +90,9 @@ def match_blobs(
             distance and half width (m).
         blobs: the detected blobs (all of the targets' class).
         px_angle: rad, one pixel column of the strip.
+        spread: (T,) rad, how far each target's blob reaches beyond its own half width
+            because touching targets of its colour merged into it (their blob's bearing is
+            their centroid's); widens the bearing window.
 
     Returns:
         (T,) index into ``blobs`` of each target's blob, -1 where none matched.
@@ -100,6 +104,8 @@ def match_blobs(
     b_dist = np.array([b.distance for b in blobs])
     safe = np.maximum(distance, 1e-6)
     window = np.arctan2(half_width, safe) + max(math.radians(BEARING_MARGIN_DEG), 2 * px_angle)
+    if spread is not None:
+        window = window + spread
     turn = b_bear[None, :] - bearing[:, None] + math.pi
     err_b = np.abs(np.remainder(turn, 2 * math.pi) - math.pi)
     err_d = np.abs(b_dist[None, :] - distance[:, None]) / safe[:, None]
@@ -148,6 +154,7 @@ def compare_robot(
             geo.half_width[targets],
             [blobs[j] for j in of_class],
             px_angle,
+            meas.blob_spread[robot, targets],
         )
         for t, m in zip(targets.tolist(), matched.tolist(), strict=True):
             distance = float(meas.distance[robot, t])

@@ -86,7 +86,11 @@ class TargetMeasurements:
         visible_share: fraction of the target's occlusion samples that the camera sees.
         width_px, height_px: projected size of the whole target in pixels.
         candidate: could be seen at all (in range, large enough if fully visible, not the
-            robot's own, a lit LED, a face plate facing the camera), before occlusion.
+            robot's own, a lit LED, a face plate facing or beside the camera), before
+            occlusion.
+        blob_spread: rad, how far the blob of a visible target that swallowed touching
+            targets of its colour reaches beyond the target's own angular half width (0 for
+            every other target): the rendered blob's bearing lies anywhere within it.
     """
 
     visible: np.ndarray
@@ -97,6 +101,7 @@ class TargetMeasurements:
     width_px: np.ndarray
     height_px: np.ndarray
     candidate: np.ndarray
+    blob_spread: np.ndarray
 
 
 class GeometricVision:
@@ -348,7 +353,8 @@ class GeometricVision:
         visible_share = (hit @ self._sample_to_target) * self.targets.inv_samples
         area = full_area * visible_share
         seen = candidate & (area >= self.targets.min_area)
-        seen &= ~self._merged_blobs(seen, visible_share, hit_geom, local, distance)
+        spread = np.zeros_like(distance)
+        seen &= ~self._merged_blobs(seen, visible_share, hit_geom, local, distance, spread)
         return TargetMeasurements(
             visible=seen,
             bearing=bearing,
@@ -358,6 +364,7 @@ class GeometricVision:
             width_px=f.width_px.copy(),
             height_px=f.height_px.copy(),
             candidate=candidate,
+            blob_spread=spread,
         )
 
     def nearest_targets(self) -> kernels.NearestTargets:
@@ -395,6 +402,7 @@ class GeometricVision:
         hit_geom: np.ndarray,
         local: np.ndarray,
         distance: np.ndarray,
+        spread: np.ndarray,
     ) -> np.ndarray:
         """Targets whose pixels join those of a nearer visible target of the same colour.
 
@@ -414,7 +422,8 @@ class GeometricVision:
           hides it (a third robot's chassis between two faces), that occluder may stand between
           their pixels, and they stay apart.
 
-        Groups are joined transitively, as pixels are.
+        Groups are joined transitively, as pixels are. ``spread[i, t]`` is set to how far (rad)
+        the group of each surviving target t reaches beyond t's own half width.
         """
         merged = np.zeros_like(seen)
         robot, a, b = np.nonzero(self._merge_pairs(seen, distance))
@@ -422,6 +431,7 @@ class GeometricVision:
             return merged
         f = self.front
         width = float(self.config.strip_width)
+        px_angle = 2.0 * math.pi / width  # rad per column, roughly (near a view's centre)
         # b's columns, moved by a strip's width if the two lie across the strip's wrap.
         mid_a = f.left_px[robot, a] + f.right_px[robot, a]
         mid_b = f.left_px[robot, b] + f.right_px[robot, b]
@@ -457,6 +467,11 @@ class GeometricVision:
                 members = np.flatnonzero((roots == root) & seen[i])
                 nearest = members[np.argmin(distance[i, members])]
                 merged[i, members[members != nearest]] = True
+                if len(members) > 1:
+                    half = 0.5 * (f.right_px[i, members] - f.left_px[i, members]) * px_angle
+                    off = np.abs(_wrap(f.bearing[i, members] - f.bearing[i, nearest])) + half
+                    own = 0.5 * (f.right_px[i, nearest] - f.left_px[i, nearest]) * px_angle
+                    spread[i, nearest] = max(float(off.max()) - own, 0.0)
         return merged
 
     def _footprints_touch(
