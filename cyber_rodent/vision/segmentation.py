@@ -53,6 +53,8 @@ from cyber_rodent.vision.types import BATTERY, N_CLASSES
 #: distance estimates may disagree by the effect of this many pixels on each before the bottom
 #: one is dropped.
 _EDGE_TOLERANCE_PX = 1.5
+#: A blob at most this many rows tall is measured by its middle row, not its edges.
+_FEW_ROWS = 3
 
 
 def _hsv_bounds(t: ColourThreshold) -> kernels.HsvBounds:
@@ -300,6 +302,12 @@ class OmniSegmenter:
                 several = in_frame & (d_bot < d_top * (1.0 - tolerance))
                 w_top, w_bot = v_top**2, v_bot**2
                 both = (w_top * d_top + w_bot * d_bot) / (w_top + w_bot)
+                # A blob a few rows tall (a far LED): each edge is off by up to a row, while
+                # the middle row is its centre's to within half a row.
+                middle = proj.horizontal_distance(
+                    0.5 * (height_top + height_bottom), 0.5 * (v_top + v_bot), u
+                )
+                both = np.where(bottom_edge - top_edge <= _FEW_ROWS, middle, both)
         d = np.where(agree, both, np.where(several, d_bot, d_top))
         d = np.where(np.isfinite(d), d, np.inf)
         return np.maximum(d, 0.0)
