@@ -55,7 +55,7 @@ def test_max_range_drops_farther_targets(world: World) -> None:
     assert far.visible[0, pack0] and not near.visible[0, pack0]
 
 
-def test_face_only_from_the_front(world: World) -> None:
+def test_face_seen_from_the_front_not_from_behind(world: World) -> None:
     geo = make_provider("geometric", world)
     # Robot 1 0.6 m ahead of robot 0, facing it: its face is seen; turned away: not.
     _place(world, [(-0.3, 0.0, 0.0), (0.3, 0.0, math.pi)], [(0.9, 0.9), (0.9, -0.9)])
