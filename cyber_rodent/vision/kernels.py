@@ -274,8 +274,8 @@ def _corner_column(
     n0: float, n1: float, a0: float, a1: float, view: int,
 ) -> float:  # fmt: skip
     """Strip column coordinate of a point of target ``t`` at ``along`` the normal (n0, n1) and
-    ``across`` the width axis (a0, a1) from its axis, in the frame of robot ``i``'s view
-    ``view``."""
+    ``across`` the width axis (a0, a1) from its axis, seen by robot ``i`` through view ``view``
+    (the one that sees the axis) or, past its edge, through the neighbouring view."""
     r = f.rot[i]
     p0 = f.diff[i, t, 0] + along * n0 + across * a0
     p1 = f.diff[i, t, 1] + along * n1 + across * a1
@@ -283,8 +283,16 @@ def _corner_column(
     l0 = p0 * r[0] + p1 * r[3] + p2 * r[6]
     l1 = p0 * r[1] + p1 * r[4] + p2 * r[7]
     clip = camera.edge_clip
-    rel = min(max(_wrap_compiled(math.atan2(l1, l0) - camera.view_centres[view]), -clip), clip)
-    return view * camera.view_width + (camera.half_tan - math.tan(rel)) * camera.px_per_u
+    rel = _wrap_compiled(math.atan2(l1, l0) - camera.view_centres[view])
+    # A corner past the view's edge lies in its neighbour, whose columns continue the strip.
+    step = 0
+    if rel > 0.5 * camera.view_span:
+        step = -1
+    elif rel < -0.5 * camera.view_span:
+        step = 1
+    rel = min(max(rel + step * camera.view_span, -clip), clip)
+    x = (view + step) * camera.view_width
+    return x + (camera.half_tan - math.tan(rel)) * camera.px_per_u
 
 
 @jit_inline
@@ -496,8 +504,12 @@ def front_reference(
     corner_local = corner @ rot[None, ...]
     b_corner = np.arctan2(corner_local[..., 1], corner_local[..., 0])
     wrapped = np.mod(b_corner - axis + math.pi, _TWO_PI) - math.pi
-    rel = np.clip(wrapped, -camera.edge_clip, camera.edge_clip)
-    column = view * camera.view_width + (camera.half_tan - np.tan(rel)) * camera.px_per_u
+    # A corner past the view's edge lies in its neighbour, whose columns continue the strip.
+    step = np.where(
+        wrapped > 0.5 * camera.view_span, -1, np.where(wrapped < -0.5 * camera.view_span, 1, 0)
+    )
+    rel = np.clip(wrapped + step * camera.view_span, -camera.edge_clip, camera.edge_clip)
+    column = (view + step) * camera.view_width + (camera.half_tan - np.tan(rel)) * camera.px_per_u
     left = np.where(valid, column, np.inf).min(axis=0)
     right = np.where(valid, column, -np.inf).max(axis=0)
     cos_off = np.cos(offset)
