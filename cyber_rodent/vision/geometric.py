@@ -12,12 +12,14 @@ measures how well they agree):
   every target's coloured part; a sample counts when the first geom its ray hits is the target
   itself. Walls, robots (bodies, posts, mirrors, wheels) and packs all occlude; the robot's own
   body does not (it is hidden from its own camera, as in the rendered image);
-* **resolution**: a target is detected only if its expected visible area in the image (its
-  projected size in pixels of the configured resolution, times the visible share of its
-  samples) reaches the class's ``min_blob_area``, which gives the camera's real range limit;
-* a face plate is seen only from the front; a robot never sees its own LED or face;
-* a target whose image touches a nearer visible target of the same colour merges into that
-  one's blob (colour segmentation cannot separate them) and is not reported separately.
+* **resolution**: a target is detected only if its expected visible area in the image (the
+  pixel centres its outline covers at the configured resolution, as a rasteriser fills them,
+  times the visible share of its samples) reaches the class's ``min_blob_area``, which gives
+  the camera's real range limit;
+* a face plate is seen from the front, and edge-on from the side where it stands out of the
+  chassis; a robot never sees its own LED or face;
+* targets of one colour whose pixels touch merge into one blob, reported at the nearest of them
+  (colour segmentation cannot separate them; ``docs/design.md`` §6 gives the rule).
 
 Every index is computed at construction; a call of :meth:`GeometricVision.observe` is a fixed
 sequence of small vectorised numpy operations plus one ``mj_multiRay`` per robot, cast only at
