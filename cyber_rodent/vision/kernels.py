@@ -83,6 +83,9 @@ class TargetTable(NamedTuple):
     rim: Floats  #: (T,) m, cylinder radius seen from above (0 for plates)
     depth_front: Floats  #: (T,) m, a plate's front face ahead of its centre (0 for cylinders)
     depth_back: Floats  #: (T,) m, where its sides begin to stand out of its body (0: cylinders)
+    #: (T,) how far behind a plate's front face, per metre beside its edge, a camera still sees
+    #: that edge past its body (0 for cylinders)
+    edge_slope: Floats
     min_area: Floats  #: (T,) px, the class's smallest detectable blob
     sample_target: Ints  #: (S,) target of each sample
     sample_lateral: Floats  #: (S,) m, offset along the target's width axis
@@ -262,6 +265,17 @@ def _covered(low: float, high: float) -> float:
 _covered_compiled = jit_inline(_covered)
 
 
+@jit_inline
+def _edge_on(targets: TargetTable, t: int, x_cam: float, y_cam: float) -> bool:
+    """Whether a camera at (x_cam, y_cam) in plate t's frame sees the side of the plate that
+    stands out of its body: beside the plate, and not so far behind its front face that the
+    body's side hides that edge (a plan-view test: the body is wider than the plate)."""
+    beside: float = abs(y_cam) - targets.half_width[t]
+    behind: float = targets.depth_front[t] - x_cam
+    reach: float = targets.edge_slope[t] * beside
+    return beside > 0.0 and behind <= reach
+
+
 def covered(low: Floats, high: Floats) -> Floats:
     """:func:`_covered` on arrays (the references use it)."""
     count: Floats = np.maximum(np.floor(high - 0.5) - np.ceil(low - 0.5) + 1.0, 0.0)
@@ -329,7 +343,7 @@ def _project(
             for across in (-hw, hw):
                 x = _corner_column(camera, f, i, t, front_face, across, n0, n1, a0, a1, view)
                 left, right = min(left, x), max(right, x)
-        if abs(y_cam) > hw:  # the side that stands out, edge-on
+        if _edge_on(targets, t, x_cam, y_cam):  # the side that stands out
             side = hw if y_cam > 0.0 else -hw
             for along in (back, front_face):
                 x = _corner_column(camera, f, i, t, along, side, n0, n1, a0, a1, view)
@@ -434,9 +448,10 @@ def front(
                 ok = False  # a dark LED is not a green target
             if ok and targets.plate[t]:  # a plate shows its front, or its side edge-on
                 g = f.gmat[t]  # its x axis is the plate's normal, its y axis its width
-                in_front = -(d0 * g[0] + d1 * g[3] + d2 * g[6]) > targets.depth_front[t]
-                beside = abs(d0 * g[1] + d1 * g[4] + d2 * g[7]) > targets.half_width[t]
-                ok = in_front or beside
+                x_cam = -(d0 * g[0] + d1 * g[3] + d2 * g[6])
+                y_cam = -(d0 * g[1] + d1 * g[4] + d2 * g[7])
+                in_front = x_cam > targets.depth_front[t]
+                ok = in_front or _edge_on(targets, t, x_cam, y_cam)
             if every_target:
                 area = _project(targets, camera, f, i, t)
                 ok = ok and area >= targets.min_area[t]
@@ -497,7 +512,9 @@ def front_reference(
     along[2] = np.broadcast_to(targets.depth_back, bearing.shape)
     along[3] = front_face
     across[2] = across[3] = np.where(y_cam > 0.0, hw, -hw)
-    valid[2] = valid[3] = plate & (np.abs(y_cam) > hw)
+    beside = np.abs(y_cam) - hw
+    edge_on = (beside > 0.0) & (front_face - x_cam <= targets.edge_slope * beside)
+    valid[2] = valid[3] = plate & edge_on
     corner = np.broadcast_to(diff, (4,) + diff.shape).copy()  # (4, n, T, 3), world frame
     corner[..., :2] += along[..., None] * normal[None, None, :, :2]
     corner[..., :2] += across[..., None] * lateral[None, :, :, :2]
@@ -534,7 +551,7 @@ def front_reference(
     candidate[:, :n] &= led_on[None, :]  # a dark LED is not a green target
     # Plates (faces) show their front to a camera ahead of them, their side edge-on to one
     # beside them.
-    candidate[:, plate] &= (x_cam > front_face)[:, plate] | (np.abs(y_cam) > hw)[:, plate]
+    candidate[:, plate] &= (x_cam > front_face)[:, plate] | edge_on[:, plate]
     # Occlusion samples: the ray from the camera to each sample point, and whether the point
     # is in the camera's field of view (the elevation band every bearing sees, else the exact
     # per-view frustum test for points very close to the robot).

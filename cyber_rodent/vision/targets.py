@@ -14,6 +14,7 @@ face plate, the battery pack's cylinder axis. Bearing is measured to the same ax
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import mujoco
@@ -43,6 +44,8 @@ class TargetShape:
         gap_bottom, gap_top: m above the floor, a grey band that cuts the coloured part in
             two (a pack's electrode ring; both 0 if none).
         gap_radius: m, that band's radius (it stands out of the cylinder).
+        body_half_width: m, half the width of the body a plate is fixed to (0 for cylinders):
+            a camera behind the plate's front face sees its edge only past the body's side.
         rim_offset: m, how much nearer (bottom) / farther (top) than the target's axis the
             silhouette's bottom and top edges lie (the radius for cylinders, 0 for plates).
     """
@@ -57,6 +60,16 @@ class TargetShape:
     gap_bottom: float = 0.0
     gap_top: float = 0.0
     gap_radius: float = 0.0
+    body_half_width: float = 0.0
+
+    @property
+    def edge_slope(self) -> float:
+        """How far behind the front face, per metre beside the plate's edge, a camera still
+        sees that edge past the body's side (0 for cylinders; inf if the body is no wider)."""
+        if not self.plate:
+            return 0.0
+        margin = self.body_half_width - self.half_width
+        return math.inf if margin <= 0 else (self.depth_front - self.depth_back) / margin
 
     @property
     def rim_offset(self) -> float:
@@ -135,6 +148,7 @@ def target_geometry(world: World) -> TargetGeometry:
         z_top=zc + half_h,
         depth_front=half_d,
         depth_back=min(max(chassis_front - face_x, -half_d), half_d),
+        body_half_width=float(m.geom_size[chassis, 1]),
     )
     led = cylinder(LED, int(world.led_geom[0]))
     if len(world.pack_geom):
