@@ -167,22 +167,32 @@ class GeometricVision:
                 s_along.append(max(shape.depth_front - _PLATE_SAMPLE_INSET, 0.0))
         sample_target = np.array(s_target, dtype=np.int64)
         n_samples = len(s_target)
-        #: (T, K) each target's samples, padded with -1.
+        # Each target's samples, padded with -1 (for the merge rule).
         counts = np.bincount(sample_target, minlength=n + n + k)
-        self._sample_table = np.full((len(counts), int(counts.max())), -1, np.int64)
+        sample_table = np.full((len(counts), int(counts.max())), -1, np.int64)
         for t in range(len(counts)):
             mine = np.flatnonzero(sample_target == t)
-            self._sample_table[t, : len(mine)] = mine
+            sample_table[t, : len(mine)] = mine
         self._sample_to_target = np.zeros((n_samples, n_targets))
         self._sample_to_target[np.arange(n_samples), sample_target] = 1.0
         inv_samples = 1.0 / self._sample_to_target.sum(axis=0)
-        self._same_class = self.target_cls[:, None] == self.target_cls[None, :]
-        #: Target of each geom (-1 for geoms that are no target); a pack's electrode ring counts
-        #: as its pack's (it only splits the pack's blue, see ``_merged_blobs``).
-        self._target_of_geom = np.full(world.model.ngeom, -1, dtype=np.int64)
-        self._target_of_geom[self.target_geom] = np.arange(len(self.target_geom))
-        self._target_of_geom[world.electrode_geom] = 2 * n + np.arange(k)
-        self._target_body = world.model.geom_bodyid[self.target_geom].astype(np.int64)
+        # Target of each geom (-1 for geoms that are no target); a pack's electrode ring counts
+        # as its pack's (it only splits the pack's blue, see kernels.merge).
+        target_of_geom = np.full(world.model.ngeom, -1, dtype=np.int64)
+        target_of_geom[self.target_geom] = np.arange(len(self.target_geom))
+        target_of_geom[world.electrode_geom] = 2 * n + np.arange(k)
+        pack = shapes[BATTERY]
+        self.merge_rules = kernels.MergeRules(
+            target_cls=self.target_cls,
+            target_body=world.model.geom_bodyid[self.target_geom].astype(np.int64),
+            sample_table=sample_table,
+            target_of_geom=target_of_geom,
+            geom_body=world.model.geom_bodyid.astype(np.int64),
+            banded=(self.target_cls == BATTERY) & (pack.gap_top > pack.gap_bottom),
+            band_dz=pack.gap_top - 0.5 * (pack.z_bottom + pack.z_top),
+            band_radius=pack.gap_radius,
+            strip_width=float(self.config.strip_width),
+        )
         widen_ray_culling_bounds(world.model)
         self._exclude = [int(b) for b in world.chassis_body]
         # Output buffers of the full pass's ray casts (reused every call).
@@ -285,6 +295,18 @@ class GeometricVision:
         self._nearest = bind(
             pick(self.backend, kernels.nearest, kernels.nearest_reference), self.scene, self.nearest
         )
+        self.merging = kernels.MergeBuffers(
+            seen=np.zeros(shape_nt, dtype=np.bool_),
+            visible_share=np.zeros(shape_nt),
+            hit_geom=np.full((n, n_samples), -1, dtype=np.int64),
+            merged=np.zeros(shape_nt, dtype=np.bool_),
+            spread=np.zeros(shape_nt),
+            group=np.zeros(n_targets, dtype=np.int64),
+        )
+        self._merge = bind(
+            pick(self.backend, kernels.merge, kernels.merge_reference),
+            self.targets, self.camera, self.merge_rules, self.front, self.merging,
+        )  # fmt: skip
 
     def close(self) -> None:
         """Nothing to release (symmetry with the rendered provider)."""
@@ -323,14 +345,15 @@ class GeometricVision:
         self._front()
         f = self.front
         # Fresh arrays: callers keep the measurements and the noise model edits them in place.
-        bearing, distance, local = f.bearing.copy(), f.distance.copy(), f.local.copy()
+        bearing, distance = f.bearing.copy(), f.distance.copy()
         candidate, full_area = f.candidate.copy(), f.full_area.copy()
         n = self.n_robots
         m, d = self.world.model, self.world.data
         sample_ok = f.sample_ok & candidate[:, self.targets.sample_target]
         hit = np.zeros_like(sample_ok)
         # The geom each sample's ray hit first (-1: none, or no ray cast).
-        hit_geom = np.full(sample_ok.shape, -1, dtype=np.int64)
+        hit_geom = self.merging.hit_geom
+        hit_geom.fill(-1)
         sample_geom = self.targets.sample_geom
         for i in range(n):
             idx = np.flatnonzero(sample_ok[i])
@@ -356,8 +379,10 @@ class GeometricVision:
         visible_share = (hit @ self._sample_to_target) * self.targets.inv_samples
         area = full_area * visible_share
         seen = candidate & (area >= self.targets.min_area)
-        spread = np.zeros_like(distance)
-        seen &= ~self._merged_blobs(seen, visible_share, hit_geom, local, distance, spread)
+        np.copyto(self.merging.seen, seen)
+        np.copyto(self.merging.visible_share, visible_share)
+        self._merge()
+        seen &= ~self.merging.merged
         return TargetMeasurements(
             visible=seen,
             bearing=bearing,
@@ -367,7 +392,7 @@ class GeometricVision:
             width_px=f.width_px.copy(),
             height_px=f.height_px.copy(),
             candidate=candidate,
-            blob_spread=spread,
+            blob_spread=self.merging.spread.copy(),
         )
 
     def nearest_targets(self) -> kernels.NearestTargets:
@@ -397,181 +422,6 @@ class GeometricVision:
     def load_state(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state` into this provider."""
         load_noise_state(self.rng, state)
-
-    def _merged_blobs(
-        self,
-        seen: np.ndarray,
-        visible_share: np.ndarray,
-        hit_geom: np.ndarray,
-        local: np.ndarray,
-        distance: np.ndarray,
-        spread: np.ndarray,
-    ) -> np.ndarray:
-        """Targets whose pixels join those of a nearer visible target of the same colour.
-
-        Colour segmentation cannot separate touching blobs of one colour (two packs side by
-        side, or a pack peeking out behind another, make one blue blob, measured at the nearer
-        one's distance), so only the nearest target of each connected group is reported. The
-        farther target b of a pair joins the nearer a when
-
-        * their pixel footprints (``front``'s covered columns and rows) overlap or are
-          8-neighbours; seen from above, a cylinder's top edge is the upper half of its top
-          rim's ellipse and its bottom edge the lower half of its bottom rim's, so the corners
-          of its box are empty. A pack's part that must touch is its upper band: below it, its
-          own grey electrode ring cuts it off, so a pack whose lower band alone touches a nearer
-          pack still shows its upper band as a blob of its own;
-        * b is wholly in view, or hidden in part only by targets of its colour, by its own body
-          (a pack's ring) or by a's body (the post an LED ring surrounds): if something else
-          hides it (a third robot's chassis between two faces), that occluder may stand between
-          their pixels, and they stay apart.
-
-        Groups are joined transitively, as pixels are. ``spread[i, t]`` is set to how far (rad)
-        the group of each surviving target t reaches beyond t's own half width.
-        """
-        merged = np.zeros_like(seen)
-        robot, a, b = np.nonzero(self._merge_pairs(seen, distance))
-        if not len(robot):
-            return merged
-        f = self.front
-        width = float(self.config.strip_width)
-        px_angle = 2.0 * math.pi / width  # rad per column, roughly (near a view's centre)
-        # b's columns, moved by a strip's width if the two lie across the strip's wrap.
-        mid_a = f.left_px[robot, a] + f.right_px[robot, a]
-        mid_b = f.left_px[robot, b] + f.right_px[robot, b]
-        shift = width * np.round((mid_b - mid_a) / (2.0 * width))
-        # Boxes that do not even touch rule most pairs out cheaply.
-        near = (f.left_px[robot, b] - shift <= f.right_px[robot, a] + 1.5) & (
-            f.left_px[robot, a] <= f.right_px[robot, b] - shift + 1.5
-        )
-        near &= (f.top_px[robot, b] <= f.bottom_px[robot, a] + 1.5) & (
-            f.top_px[robot, a] <= f.bottom_px[robot, b] + 1.5
-        )
-        if not near.any():
-            return merged
-        robot, a, b, shift = robot[near], a[near], b[near], shift[near]
-        box_a = (f.left_px[robot, a], f.right_px[robot, a], f.top_px[robot, a])
-        box_b = (f.left_px[robot, b] - shift, f.right_px[robot, b] - shift, f.top_px[robot, b])
-        touch = self._footprints_touch(robot, a, b, local, distance, box_a, box_b)
-        # Something of another colour hides part of b: its own samples' first hits.
-        samples = self._sample_table[b]  # (P, K), -1 padded
-        valid = samples >= 0
-        samples = np.maximum(samples, 0)
-        geom = hit_geom[robot[:, None], samples]
-        cast = valid & f.sample_ok[robot[:, None], samples] & (geom >= 0)
-        geom = np.maximum(geom, 0)
-        hit_target = self._target_of_geom[geom]
-        same_colour = (hit_target >= 0) & (
-            self.target_cls[np.maximum(hit_target, 0)] == self.target_cls[b][:, None]
-        )
-        body = self.world.model.geom_bodyid[geom]
-        foreign = cast & ~same_colour
-        foreign &= body != self._target_body[b][:, None]
-        foreign &= body != self._target_body[a][:, None]
-        apart = (visible_share[robot, b] < 1.0) & foreign.any(axis=1)
-        edges = touch & ~apart
-        for i in np.unique(robot[edges]):
-            group = np.arange(seen.shape[1])
-            mine = edges & (robot == i)
-            for t, u in zip(a[mine].tolist(), b[mine].tolist(), strict=True):
-                rt, ru = _root(group, t), _root(group, u)
-                group[max(rt, ru)] = min(rt, ru)
-            roots = np.array([_root(group, t) for t in range(len(group))])
-            for root in np.unique(roots[seen[i]]):
-                members = np.flatnonzero((roots == root) & seen[i])
-                nearest = members[np.argmin(distance[i, members])]
-                merged[i, members[members != nearest]] = True
-                if len(members) > 1:
-                    half = 0.5 * (f.right_px[i, members] - f.left_px[i, members]) * px_angle
-                    off = np.abs(_wrap(f.bearing[i, members] - f.bearing[i, nearest])) + half
-                    own = 0.5 * (f.right_px[i, nearest] - f.left_px[i, nearest]) * px_angle
-                    spread[i, nearest] = max(float(off.max()) - own, 0.0)
-        return merged
-
-    def _footprints_touch(
-        self,
-        i: np.ndarray,
-        a: np.ndarray,
-        b: np.ndarray,
-        local: np.ndarray,
-        distance: np.ndarray,
-        box_a: tuple[np.ndarray, np.ndarray, np.ndarray],
-        box_b: tuple[np.ndarray, np.ndarray, np.ndarray],
-    ) -> np.ndarray:
-        """Per pair: whether a's footprint and b's (its upper band, for a pack) touch.
-
-        ``box_a``, ``box_b``: left and right column edges and top row edge (b's columns moved
-        into a's turn of the strip)."""
-        f, proj = self.front, self.projection
-        hh, r = self.targets.half_height, self.targets.rim
-        plate = self.targets.plate
-
-        def rim_row(t: np.ndarray, dz: np.ndarray | float, rim: np.ndarray | float) -> np.ndarray:
-            """Row of the point ``dz`` above target t's centre on its rim ``rim`` farther."""
-            _, offset = proj.view_coordinates(f.bearing[i, t])
-            depth = np.maximum((distance[i, t] + rim) * np.cos(offset), 1e-9)
-            return np.asarray((proj.v_top - (local[i, t, 2] + dz) / depth) * proj.px_per_v)
-
-        left_a, right_a, top_a = box_a
-        left_b, right_b, top_b = box_b
-        bottom_a = f.bottom_px[i, a]
-        # b's lowest part that counts, and the half height of the ellipse that bounds it.
-        bottom_b = f.bottom_px[i, b].copy()
-        bottom_half_b = 0.5 * (bottom_b - rim_row(b, -hh[b], r[b]))
-        shape = self.geometry.shapes[BATTERY]
-        banded = (self.target_cls[b] == BATTERY) & (shape.gap_top > shape.gap_bottom)
-        if banded.any():
-            centre = 0.5 * (shape.z_bottom + shape.z_top)
-            dz = shape.gap_top - centre
-            near = rim_row(b, dz, -shape.gap_radius)
-            far = rim_row(b, dz, shape.gap_radius)
-            bottom_b = np.where(banded, np.minimum(near, bottom_b), bottom_b)
-            bottom_half_b = np.where(banded, 0.5 * (near - far), bottom_half_b)
-        bottom_half_b = np.where(plate[b], 0.0, np.maximum(bottom_half_b, 0.0))
-        top_half_a = np.where(plate[a], 0.0, 0.5 * (rim_row(a, hh[a], -r[a]) - top_a))
-        top_half_a = np.maximum(top_half_a, 0.0)
-        # Covered pixels (centres at k + 0.5) touch when their index ranges overlap or abut.
-        cols = (np.ceil(left_b - 0.5) <= np.floor(right_a - 0.5) + 1) & (
-            np.ceil(left_a - 0.5) <= np.floor(right_b - 0.5) + 1
-        )
-        rows = (np.ceil(top_b - 0.5) <= np.floor(bottom_a - 0.5) + 1) & (
-            np.ceil(top_a - 0.5) <= np.floor(bottom_b - 0.5) + 1
-        )
-        touch = cols & rows
-        # Where b lies above a over common columns, the ellipses decide.
-        low, high = np.maximum(left_a, left_b), np.minimum(right_a, right_b)
-        above = touch & (top_b < top_a) & (low <= high)
-        centre_a, centre_b = 0.5 * (left_a + right_a), 0.5 * (left_b + right_b)
-        half_a = np.maximum(0.5 * (right_a - left_a), 1e-9)
-        half_b = np.maximum(0.5 * (right_b - left_b), 1e-9)
-        gap = np.full(len(i), np.inf)
-        for x in (low, high, np.clip(centre_a, low, high), np.clip(centre_b, low, high)):
-            sag_a = 1.0 - np.sqrt(np.clip(1.0 - ((x - centre_a) / half_a) ** 2, 0.0, 1.0))
-            sag_b = 1.0 - np.sqrt(np.clip(1.0 - ((x - centre_b) / half_b) ** 2, 0.0, 1.0))
-            edge_a = top_a + top_half_a * sag_a
-            edge_b = bottom_b - bottom_half_b * sag_b
-            gap = np.minimum(gap, np.ceil(edge_a - 0.5) - np.floor(edge_b - 0.5))
-        touch &= ~above | (gap <= 1.0)
-        return np.asarray(touch)
-
-    def _merge_pairs(self, seen: np.ndarray, distance: np.ndarray) -> np.ndarray:
-        """[i, a, b]: both seen by robot i, the same colour, a nearer than b."""
-        pairs: np.ndarray = seen[:, :, None] & seen[:, None, :]
-        pairs &= self._same_class[None, :, :]
-        pairs &= distance[:, :, None] < distance[:, None, :]
-        return pairs
-
-
-def _root(parent: np.ndarray, a: int) -> int:
-    """Union-find root of ``a``."""
-    while parent[a] != a:
-        a = int(parent[a])
-    return int(a)
-
-
-def _wrap(a: np.ndarray) -> np.ndarray:
-    """Wrap angles to [-π, π)."""
-    wrapped: np.ndarray = (a + math.pi) % (2.0 * math.pi) - math.pi
-    return wrapped
 
 
 def widen_ray_culling_bounds(model: mujoco.MjModel) -> None:

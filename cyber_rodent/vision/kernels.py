@@ -154,6 +154,31 @@ class NearestTargets(NamedTuple):
     visible: Bools  #: (n, 3)
 
 
+class MergeRules(NamedTuple):
+    """Constants of :func:`merge`: which targets' blobs may join (T targets, G geoms)."""
+
+    target_cls: Ints  #: (T,) colour class of each target
+    target_body: Ints  #: (T,) body that carries each target
+    sample_table: Ints  #: (T, K) each target's samples, padded with -1
+    target_of_geom: Ints  #: (G,) target of each geom (a pack's ring: its pack's), else -1
+    geom_body: Ints  #: (G,) body of each geom
+    banded: Bools  #: (T,) the target's colour is cut by a grey band (a pack's ring)
+    band_dz: float  #: m, that band's top above the target's centre
+    band_radius: float  #: m, the band's radius
+    strip_width: float  #: pixel columns of the strip (its wrap)
+
+
+class MergeBuffers(NamedTuple):
+    """Inputs, outputs and scratch of :func:`merge` (n robots, T targets, S samples)."""
+
+    seen: Bools  #: (n, T) detected before merging
+    visible_share: Floats  #: (n, T) share of its in-view samples the camera sees
+    hit_geom: Ints  #: (n, S) geom each sample's ray hit first, -1 if none or not cast
+    merged: Bools  #: (n, T) output: swallowed by a nearer target's blob
+    spread: Floats  #: (n, T) output: rad, how far a survivor's blob reaches past its half width
+    group: Ints  #: (T,) scratch: union-find parents
+
+
 class GeometricScene(NamedTuple):
     """Everything :func:`nearest` reads: the poses, the constants, the LEDs, the scratch."""
 
@@ -692,12 +717,296 @@ def nearest_reference(scene: GeometricScene, out: NearestTargets) -> None:
                     break
 
 
+# --- merge -------------------------------------------------------------------------------------
+@jit_inline
+def _rim_row(
+    camera: CameraModel, f: FrontBuffers, i: int, t: int, dz: float, rim: float
+) -> float:
+    """Row coordinate, in robot i's strip, of the point ``dz`` above target t's centre on the
+    rim ``rim`` farther than its axis (negative: nearer)."""
+    span = camera.view_span
+    rel = (camera.view_centres[0] - f.bearing[i, t] + 0.5 * span) % _TWO_PI
+    view = min(int(rel // span), camera.n_views - 1)
+    offset = 0.5 * span - (rel - view * span)
+    depth = max((f.distance[i, t] + rim) * math.cos(offset), 1e-9)
+    row: float = (camera.v_top - (f.local[i, t, 2] + dz) / depth) * camera.px_per_v
+    return row
+
+
+@jit_inline
+def _sag(x: float, centre: float, half: float) -> float:
+    """How far (0 at the middle, 1 at the ends) an ellipse's edge has fallen at column x."""
+    q = (x - centre) / half
+    return 1.0 - math.sqrt(min(max(1.0 - q * q, 0.0), 1.0))
+
+
+@jit_inline
+def _touch(
+    targets: TargetTable, camera: CameraModel, rules: MergeRules, f: FrontBuffers, i: int,
+    a: int, b: int,
+) -> bool:  # fmt: skip
+    """Whether the footprints of target a and of the farther target b (its upper band, for a
+    pack) touch in robot i's strip (see :func:`merge`)."""
+    width = rules.strip_width
+    shift = width * np.rint(
+        ((f.left_px[i, b] + f.right_px[i, b]) - (f.left_px[i, a] + f.right_px[i, a]))
+        / (2.0 * width)
+    )
+    left_a, right_a, top_a = f.left_px[i, a], f.right_px[i, a], f.top_px[i, a]
+    left_b, right_b, top_b = f.left_px[i, b] - shift, f.right_px[i, b] - shift, f.top_px[i, b]
+    bottom_a, bottom_b = f.bottom_px[i, a], f.bottom_px[i, b]
+    if left_b > right_a + 1.5 or left_a > right_b + 1.5:
+        return False
+    if top_b > bottom_a + 1.5 or top_a > bottom_b + 1.5:
+        return False
+    hh, r = targets.half_height, targets.rim
+    bottom_half_b = 0.5 * (bottom_b - _rim_row(camera, f, i, b, -hh[b], r[b]))
+    if rules.banded[b]:
+        near = _rim_row(camera, f, i, b, rules.band_dz, -rules.band_radius)
+        far = _rim_row(camera, f, i, b, rules.band_dz, rules.band_radius)
+        bottom_b = min(near, bottom_b)
+        bottom_half_b = 0.5 * (near - far)
+    bottom_half_b = 0.0 if targets.plate[b] else max(bottom_half_b, 0.0)
+    top_half_a = 0.0
+    if not targets.plate[a]:
+        top_half_a = max(0.5 * (_rim_row(camera, f, i, a, hh[a], -r[a]) - top_a), 0.0)
+    cols = math.ceil(left_b - 0.5) <= math.floor(right_a - 0.5) + 1
+    cols = cols and math.ceil(left_a - 0.5) <= math.floor(right_b - 0.5) + 1
+    rows = math.ceil(top_b - 0.5) <= math.floor(bottom_a - 0.5) + 1
+    rows = rows and math.ceil(top_a - 0.5) <= math.floor(bottom_b - 0.5) + 1
+    if not (cols and rows):
+        return False
+    low, high = max(left_a, left_b), min(right_a, right_b)
+    if not (top_b < top_a and low <= high):
+        return True
+    centre_a, centre_b = 0.5 * (left_a + right_a), 0.5 * (left_b + right_b)
+    half_a = max(0.5 * (right_a - left_a), 1e-9)
+    half_b = max(0.5 * (right_b - left_b), 1e-9)
+    gap = math.inf
+    for x in (low, high, min(max(centre_a, low), high), min(max(centre_b, low), high)):
+        edge_a = top_a + top_half_a * _sag(x, centre_a, half_a)
+        edge_b = bottom_b - bottom_half_b * _sag(x, centre_b, half_b)
+        gap = min(gap, math.ceil(edge_a - 0.5) - math.floor(edge_b - 0.5))
+    return gap <= 1.0
+
+
+@jit_inline
+def _hidden_by_another(
+    rules: MergeRules, f: FrontBuffers, m: MergeBuffers, i: int, a: int, b: int
+) -> bool:
+    """Whether something other than targets of b's colour, b's own body or a's body hides one
+    of b's samples from robot i."""
+    for k in range(rules.sample_table.shape[1]):
+        s = rules.sample_table[b, k]
+        if s < 0:
+            break
+        g = m.hit_geom[i, s]
+        if not f.sample_ok[i, s] or g < 0:
+            continue
+        hit = rules.target_of_geom[g]
+        if hit >= 0 and rules.target_cls[hit] == rules.target_cls[b]:
+            continue
+        body = rules.geom_body[g]
+        if body != rules.target_body[b] and body != rules.target_body[a]:
+            return True
+    return False
+
+
+@jit
+def merge(
+    targets: TargetTable, camera: CameraModel, rules: MergeRules, f: FrontBuffers,
+    m: MergeBuffers,
+) -> None:  # fmt: skip
+    """Which seen targets' blobs join a nearer seen target's of their colour (``m.merged``),
+    and how far each survivor's blob spreads (``m.spread``).
+
+    Colour segmentation cannot separate touching blobs of one colour (two packs side by side,
+    or a pack peeking out behind another, make one blue blob, measured at the nearer one's
+    distance), so only the nearest target of each connected group is reported. The farther
+    target b of a pair joins the nearer a when
+
+    * their pixel footprints (``front``'s covered columns and rows) overlap or are
+      8-neighbours; seen from above, a cylinder's top edge is the upper half of its top rim's
+      ellipse and its bottom edge the lower half of its bottom rim's, so the corners of its box
+      are empty. A pack's part that must touch is its upper band: below it, its own grey
+      electrode ring cuts it off, so a pack whose lower band alone touches a nearer pack still
+      shows its upper band as a blob of its own;
+    * b is wholly in view, or hidden in part only by targets of its colour, by its own body (a
+      pack's ring) or by a's body (the post an LED ring surrounds): if something else hides it
+      (a third robot's chassis between two faces), that occluder may stand between their
+      pixels, and they stay apart.
+
+    Groups are joined transitively, as pixels are; the survivor of a group is its nearest
+    member (ties: the lower index).
+    """
+    n, n_t = m.seen.shape
+    group = m.group
+    for i in range(n):
+        for t in range(n_t):
+            group[t] = t
+            m.merged[i, t] = False
+            m.spread[i, t] = 0.0
+        joined = False
+        for a in range(n_t):
+            if not m.seen[i, a]:
+                continue
+            for b in range(n_t):
+                if not m.seen[i, b] or rules.target_cls[a] != rules.target_cls[b]:
+                    continue
+                if not f.distance[i, a] < f.distance[i, b]:
+                    continue
+                if not _touch(targets, camera, rules, f, i, a, b):
+                    continue
+                if m.visible_share[i, b] < 1.0 and _hidden_by_another(rules, f, m, i, a, b):
+                    continue
+                ra, rb = a, b
+                while group[ra] != ra:
+                    ra = group[ra]
+                while group[rb] != rb:
+                    rb = group[rb]
+                group[max(ra, rb)] = min(ra, rb)
+                joined = True
+        if not joined:
+            continue
+        for t in range(n_t):  # resolve every target to its root
+            root = t
+            while group[root] != root:
+                root = group[root]
+            group[t] = root
+        px_angle = _TWO_PI / rules.strip_width
+        for root in range(n_t):
+            if group[root] != root or not m.seen[i, root]:
+                continue
+            nearest, count = -1, 0
+            for t in range(n_t):
+                if group[t] == root and m.seen[i, t]:
+                    count += 1
+                    if nearest < 0 or f.distance[i, t] < f.distance[i, nearest]:
+                        nearest = t
+            if count < 2:
+                continue
+            own = 0.5 * (f.right_px[i, nearest] - f.left_px[i, nearest]) * px_angle
+            reach = 0.0
+            for t in range(n_t):
+                if group[t] == root and m.seen[i, t]:
+                    if t != nearest:
+                        m.merged[i, t] = True
+                    half = 0.5 * (f.right_px[i, t] - f.left_px[i, t]) * px_angle
+                    off = abs(_wrap_compiled(f.bearing[i, t] - f.bearing[i, nearest])) + half
+                    reach = max(reach, off)
+            m.spread[i, nearest] = max(reach - own, 0.0)
+
+
+def merge_reference(
+    targets: TargetTable, camera: CameraModel, rules: MergeRules, f: FrontBuffers,
+    m: MergeBuffers,
+) -> None:  # fmt: skip
+    """:func:`merge` in numpy: every pair's tests at once, then the groups in Python."""
+    m.merged.fill(False)
+    m.spread.fill(0.0)
+    seen, cls, distance = m.seen, rules.target_cls, f.distance
+    pairs = seen[:, :, None] & seen[:, None, :]
+    pairs &= cls[None, :, None] == cls[None, None, :]
+    pairs &= distance[:, :, None] < distance[:, None, :]
+    robot, a, b = np.nonzero(pairs)
+    if not len(robot):
+        return
+    width = rules.strip_width
+    mid_a = f.left_px[robot, a] + f.right_px[robot, a]
+    mid_b = f.left_px[robot, b] + f.right_px[robot, b]
+    shift = width * np.rint((mid_b - mid_a) / (2.0 * width))
+    left_a, right_a, top_a = f.left_px[robot, a], f.right_px[robot, a], f.top_px[robot, a]
+    left_b, right_b = f.left_px[robot, b] - shift, f.right_px[robot, b] - shift
+    top_b, bottom_a, bottom_b = f.top_px[robot, b], f.bottom_px[robot, a], f.bottom_px[robot, b]
+    near = (left_b <= right_a + 1.5) & (left_a <= right_b + 1.5)
+    near &= (top_b <= bottom_a + 1.5) & (top_a <= bottom_b + 1.5)
+
+    def rim_row(t: Ints, dz: Floats | float, rim: Floats | float) -> Floats:
+        _, offset = _view_offset(camera, f.bearing[robot, t])
+        depth = np.maximum((distance[robot, t] + rim) * np.cos(offset), 1e-9)
+        row: Floats = (camera.v_top - (f.local[robot, t, 2] + dz) / depth) * camera.px_per_v
+        return row
+
+    hh, r, plate = targets.half_height, targets.rim, targets.plate
+    bottom_half_b = 0.5 * (bottom_b - rim_row(b, -hh[b], r[b]))
+    banded = rules.banded[b]
+    near_band = rim_row(b, rules.band_dz, -rules.band_radius)
+    far_band = rim_row(b, rules.band_dz, rules.band_radius)
+    bottom_b = np.where(banded, np.minimum(near_band, bottom_b), bottom_b)
+    bottom_half_b = np.where(banded, 0.5 * (near_band - far_band), bottom_half_b)
+    bottom_half_b = np.where(plate[b], 0.0, np.maximum(bottom_half_b, 0.0))
+    top_half_a = np.where(
+        plate[a], 0.0, np.maximum(0.5 * (rim_row(a, hh[a], -r[a]) - top_a), 0.0)
+    )
+    cols = (np.ceil(left_b - 0.5) <= np.floor(right_a - 0.5) + 1) & (
+        np.ceil(left_a - 0.5) <= np.floor(right_b - 0.5) + 1
+    )
+    rows = (np.ceil(top_b - 0.5) <= np.floor(bottom_a - 0.5) + 1) & (
+        np.ceil(top_a - 0.5) <= np.floor(bottom_b - 0.5) + 1
+    )
+    touch = near & cols & rows
+    low, high = np.maximum(left_a, left_b), np.minimum(right_a, right_b)
+    above = touch & (top_b < top_a) & (low <= high)
+    centre_a, centre_b = 0.5 * (left_a + right_a), 0.5 * (left_b + right_b)
+    half_a = np.maximum(0.5 * (right_a - left_a), 1e-9)
+    half_b = np.maximum(0.5 * (right_b - left_b), 1e-9)
+    gap = np.full(len(robot), np.inf)
+    for x in (low, high, np.clip(centre_a, low, high), np.clip(centre_b, low, high)):
+        sag_a = 1.0 - np.sqrt(np.clip(1.0 - ((x - centre_a) / half_a) ** 2, 0.0, 1.0))
+        sag_b = 1.0 - np.sqrt(np.clip(1.0 - ((x - centre_b) / half_b) ** 2, 0.0, 1.0))
+        edge_a = top_a + top_half_a * sag_a
+        edge_b = bottom_b - bottom_half_b * sag_b
+        gap = np.minimum(gap, np.ceil(edge_a - 0.5) - np.floor(edge_b - 0.5))
+    touch &= ~above | (gap <= 1.0)
+    # Something of another colour, neither b's body nor a's, hides one of b's samples.
+    samples = rules.sample_table[b]
+    valid = samples >= 0
+    samples = np.maximum(samples, 0)
+    geom = m.hit_geom[robot[:, None], samples]
+    cast = valid & f.sample_ok[robot[:, None], samples] & (geom >= 0)
+    geom = np.maximum(geom, 0)
+    hit = rules.target_of_geom[geom]
+    same_colour = (hit >= 0) & (cls[np.maximum(hit, 0)] == cls[b][:, None])
+    body = rules.geom_body[geom]
+    foreign = cast & ~same_colour
+    foreign &= body != rules.target_body[b][:, None]
+    foreign &= body != rules.target_body[a][:, None]
+    apart = (m.visible_share[robot, b] < 1.0) & foreign.any(axis=1)
+    edges = touch & ~apart
+    px_angle = _TWO_PI / width
+    for i in np.unique(robot[edges]).tolist():
+        group = np.arange(seen.shape[1])
+        mine = edges & (robot == i)
+        for t, u in zip(a[mine].tolist(), b[mine].tolist(), strict=True):
+            rt, ru = t, u
+            while group[rt] != rt:
+                rt = int(group[rt])
+            while group[ru] != ru:
+                ru = int(group[ru])
+            group[max(rt, ru)] = min(rt, ru)
+        while not np.array_equal(group[group], group):
+            group = group[group]
+        for root in np.unique(group[seen[i]]).tolist():
+            members = np.flatnonzero((group == root) & seen[i])
+            if len(members) < 2:
+                continue
+            nearest = members[np.argmin(distance[i, members])]
+            m.merged[i, members[members != nearest]] = True
+            half = 0.5 * (f.right_px[i, members] - f.left_px[i, members]) * px_angle
+            turn = f.bearing[i, members] - f.bearing[i, nearest]
+            off = np.abs(np.mod(turn + math.pi, _TWO_PI) - math.pi) + half
+            own = 0.5 * (f.right_px[i, nearest] - f.left_px[i, nearest]) * px_angle
+            m.spread[i, nearest] = max(float(off.max()) - own, 0.0)
+
+
 __all__ = [
     "UNAVAILABLE_REASON",
     "VERIFIED_MUJOCO",
     "CameraModel",
     "FrontBuffers",
     "GeometricScene",
+    "MergeBuffers",
+    "MergeRules",
     "MujocoPoses",
     "NearestTargets",
     "TargetTable",
@@ -705,6 +1014,8 @@ __all__ = [
     "front_reference",
     "gather",
     "gather_reference",
+    "merge",
+    "merge_reference",
     "nearest",
     "nearest_reference",
 ]
