@@ -185,6 +185,10 @@ def run_family(
     return result
 
 
+def _rounded(value: object) -> object:
+    return round(value, 4) if isinstance(value, float) else value
+
+
 def _pct(x: float) -> str:
     return "   -  " if math.isnan(x) else f"{100 * x:5.1f}%"
 
@@ -199,6 +203,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     ap.add_argument("--out", type=Path, default=Path("benchmarks/results/hard_scenes"))
     ap.add_argument("--worst", type=int, default=10, help="list this many worst disagreements")
+    ap.add_argument(
+        "--table", type=Path, default=None, help="also write the per-family table here (CSV)"
+    )
     args = ap.parse_args(argv)
     names = args.families.split(",")
     chosen = [f for f in FAMILIES if f.name in names]
@@ -248,10 +255,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         writer.writeheader()
         for d in disagreements:
             writer.writerow({k: d.get(k, "") for k in keys})
-    with open(args.out / "summary.csv", "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(results[0]))
-        writer.writeheader()
-        writer.writerows(results)
+    table = [{k: _rounded(v) for k, v in r.items() if k != "seconds"} for r in results]
+    for path in [args.out / "summary.csv"] + ([args.table] if args.table else []):
+        with open(path, "w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(table[0]))
+            writer.writeheader()
+            writer.writerows(table)
     near = [d for d in disagreements if d["distance"] <= args.within]
     worst = sorted(near, key=lambda d: -d["score"])[: args.worst]
     print(f"\n{len(near)} disagreements within {args.within} m; the worst {len(worst)}:")
