@@ -564,7 +564,7 @@ def test_fused_sense_decide_act_equals_the_step_by_step_path(method) -> None:
         return runner
 
     def run(fused: bool, tmp: Path) -> EvolutionRunner:
-        runner = EvolutionRunner(RunConfig(method=method), 11, BehaviourPolicies.load_default())
+        runner = EvolutionRunner(RunConfig(method=method), 12, BehaviourPolicies.load_default())
         assert runner.sense_decide_act != runner.sense_decide_act_stepwise  # fused by default
         if not fused:
             stage_by_stage(runner)
