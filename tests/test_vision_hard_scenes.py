@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 
-import mujoco
 import numpy as np
 import pytest
 
@@ -20,6 +19,7 @@ from cyber_rodent.vision.hard_scenes import (
     FAMILIES,
     MAX_PENETRATION,
     TEETH_TO_PACK,
+    Scene,
     family,
     make_scenes,
     place,
@@ -57,13 +57,13 @@ def test_an_interpenetrating_scene_is_invalid() -> None:
     world = World(fam.world_config())
     scene = make_scenes(world, fam, 1, seed=0)[0]
     x, y, yaw = scene.robots[1]
-    overlapping = type(scene)(
+    overlapping = Scene(
         robots=(scene.robots[0], (x, y, yaw), (x + 0.05, y, yaw), scene.robots[3]),
         packs=scene.packs,
         leds=scene.leds,
     )
     assert not valid(world, overlapping)
-    outside = type(scene)(robots=((1.1, 0.0, 0.0),) + scene.robots[1:], packs=scene.packs,
+    outside = Scene(robots=((1.1, 0.0, 0.0),) + scene.robots[1:], packs=scene.packs,
                           leds=scene.leds)  # fmt: skip
     assert not valid(world, outside)
 
@@ -137,13 +137,9 @@ def test_pixel_footprint_counts_covered_centres() -> None:
     )
 
 
-def _place(world: World, robots, packs, leds=True) -> None:
-    for i, (x, y, yaw) in enumerate(robots):
-        world.set_robot_pose(i, x, y, yaw)
-    for j, (x, y) in enumerate(packs):
-        world.set_pack_position(j, x, y)
-    world.set_led(leds)
-    mujoco.mj_forward(world.model, world.data)
+def _place(world: World, robots, packs) -> None:
+    """Robots and packs where given, every LED on."""
+    place(world, Scene(tuple(robots), tuple(packs), (True,) * world.config.n_robots))
 
 
 @pytest.fixture(scope="module")

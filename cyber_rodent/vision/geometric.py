@@ -167,12 +167,6 @@ class GeometricVision:
                 s_along.append(max(shape.depth_front - _PLATE_SAMPLE_INSET, 0.0))
         sample_target = np.array(s_target, dtype=np.int64)
         n_samples = len(s_target)
-        # Each target's samples, padded with -1 (for the merge rule).
-        counts = np.bincount(sample_target, minlength=n + n + k)
-        sample_table = np.full((len(counts), int(counts.max())), -1, np.int64)
-        for t in range(len(counts)):
-            mine = np.flatnonzero(sample_target == t)
-            sample_table[t, : len(mine)] = mine
         self._sample_to_target = np.zeros((n_samples, n_targets))
         self._sample_to_target[np.arange(n_samples), sample_target] = 1.0
         inv_samples = 1.0 / self._sample_to_target.sum(axis=0)
@@ -185,7 +179,6 @@ class GeometricVision:
         self.merge_rules = kernels.MergeRules(
             target_cls=self.target_cls,
             target_body=world.model.geom_bodyid[self.target_geom].astype(np.int64),
-            sample_table=sample_table,
             target_of_geom=target_of_geom,
             geom_body=world.model.geom_bodyid.astype(np.int64),
             banded=(self.target_cls == BATTERY) & (pack.gap_top > pack.gap_bottom),

@@ -159,7 +159,6 @@ class MergeRules(NamedTuple):
 
     target_cls: Ints  #: (T,) colour class of each target
     target_body: Ints  #: (T,) body that carries each target
-    sample_table: Ints  #: (T, K) each target's samples, padded with -1
     target_of_geom: Ints  #: (G,) target of each geom (a pack's ring: its pack's), else -1
     geom_body: Ints  #: (G,) body of each geom
     banded: Bools  #: (T,) the target's colour is cut by a grey band (a pack's ring)
@@ -792,14 +791,12 @@ def _touch(
 
 @jit_inline
 def _hidden_by_another(
-    rules: MergeRules, f: FrontBuffers, m: MergeBuffers, i: int, a: int, b: int
-) -> bool:
+    targets: TargetTable, rules: MergeRules, f: FrontBuffers, m: MergeBuffers, i: int, a: int,
+    b: int,
+) -> bool:  # fmt: skip
     """Whether something other than targets of b's colour, b's own body or a's body hides one
     of b's samples from robot i."""
-    for k in range(rules.sample_table.shape[1]):
-        s = rules.sample_table[b, k]
-        if s < 0:
-            break
+    for s in range(targets.sample_start[b], targets.sample_end[b]):
         g = m.hit_geom[i, s]
         if not f.sample_ok[i, s] or g < 0:
             continue
@@ -857,7 +854,8 @@ def merge(
                     continue
                 if not _touch(targets, camera, rules, f, i, a, b):
                     continue
-                if m.visible_share[i, b] < 1.0 and _hidden_by_another(rules, f, m, i, a, b):
+                partly_hidden = m.visible_share[i, b] < 1.0
+                if partly_hidden and _hidden_by_another(targets, rules, f, m, i, a, b):
                     continue
                 ra, rb = a, b
                 while group[ra] != ra:
@@ -959,9 +957,10 @@ def merge_reference(
         gap = np.minimum(gap, np.ceil(edge_a - 0.5) - np.floor(edge_b - 0.5))
     touch &= ~above | (gap <= 1.0)
     # Something of another colour, neither b's body nor a's, hides one of b's samples.
-    samples = rules.sample_table[b]
-    valid = samples >= 0
-    samples = np.maximum(samples, 0)
+    start, end = targets.sample_start[b], targets.sample_end[b]
+    samples = start[:, None] + np.arange(int((end - start).max()))[None, :]
+    valid = samples < end[:, None]
+    samples = np.where(valid, samples, 0)
     geom = m.hit_geom[robot[:, None], samples]
     cast = valid & f.sample_ok[robot[:, None], samples] & (geom >= 0)
     geom = np.maximum(geom, 0)
