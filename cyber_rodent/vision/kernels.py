@@ -307,6 +307,17 @@ def covered(low: Floats, high: Floats) -> Floats:
 
 
 @jit_inline
+def _view_of(camera: CameraModel, bearing: float) -> tuple[int, float]:
+    """The view that sees ``bearing`` and the bearing's offset from that view's axis (the
+    scalar :func:`_view_offset`)."""
+    span = camera.view_span
+    rel = (camera.view_centres[0] - bearing + 0.5 * span) % _TWO_PI
+    view = min(int(rel // span), camera.n_views - 1)
+    offset: float = 0.5 * span - (rel - view * span)
+    return view, offset
+
+
+@jit_inline
 def _corner_column(
     camera: CameraModel, f: FrontBuffers, i: int, t: int, along: float, across: float,
     n0: float, n1: float, a0: float, a1: float, view: int,
@@ -347,15 +358,12 @@ def _project(
     as a rasteriser counts them. Reads ``diff``, ``local``, ``bearing`` and ``distance``,
     which :func:`front` wrote.
     """
-    span = camera.view_span
     g = f.gmat[t]
     d0, d1, d2 = f.diff[i, t, 0], f.diff[i, t, 1], f.diff[i, t, 2]
     l2 = f.local[i, t, 2]
     b, dist = f.bearing[i, t], f.distance[i, t]
     hw = targets.half_width[t]
-    rel = (camera.view_centres[0] - b + 0.5 * span) % _TWO_PI
-    view = min(int(rel // span), camera.n_views - 1)
-    offset = 0.5 * span - (rel - view * span)
+    view, offset = _view_of(camera, b)
     left, right = math.inf, -math.inf
     if targets.plate[t]:
         a0, a1, a2 = g[1], g[4], g[7]  # the plate's own width axis
@@ -404,7 +412,6 @@ def _project(
 @jit_inline
 def _sample(targets: TargetTable, camera: CameraModel, f: FrontBuffers, i: int, s: int) -> None:
     """Robot ``i``'s ray to occlusion sample ``s`` and whether the point is in its view."""
-    span = camera.view_span
     r = f.rot[i]
     t = targets.sample_target[s]
     g = f.gmat[t]
@@ -426,9 +433,7 @@ def _sample(targets: TargetTable, camera: CameraModel, f: FrontBuffers, i: int, 
     tan_el = c2 / rh
     inside = tan_el >= camera.tan_el_min and tan_el <= camera.tan_el_max
     if not inside:  # near the robot: the exact per-view frustum test
-        rel = (camera.view_centres[0] - math.atan2(c1, c0) + 0.5 * span) % _TWO_PI
-        view = min(int(rel // span), camera.n_views - 1)
-        offset = 0.5 * span - (rel - view * span)
+        view, offset = _view_of(camera, math.atan2(c1, c0))
         v = tan_el / math.cos(offset)
         inside = v >= camera.v_bottom and v <= camera.v_top
     f.sample_ok[i, s] = inside
@@ -723,10 +728,7 @@ def _rim_row(
 ) -> float:
     """Row coordinate, in robot i's strip, of the point ``dz`` above target t's centre on the
     rim ``rim`` farther than its axis (negative: nearer)."""
-    span = camera.view_span
-    rel = (camera.view_centres[0] - f.bearing[i, t] + 0.5 * span) % _TWO_PI
-    view = min(int(rel // span), camera.n_views - 1)
-    offset = 0.5 * span - (rel - view * span)
+    _, offset = _view_of(camera, f.bearing[i, t])
     depth = max((f.distance[i, t] + rim) * math.cos(offset), 1e-9)
     row: float = (camera.v_top - (f.local[i, t, 2] + dz) / depth) * camera.px_per_v
     return row
