@@ -12,7 +12,7 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # pandas is slow to import; ``--help`` must stay fast
     import pandas as pd
@@ -97,11 +97,27 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
     return 0
 
 
+def _settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The settings of ``--config FILE`` then ``--set KEY=VALUE`` (later ones win)."""
+    from evolution import settings
+
+    from_file = settings.load_config_file(args.config) if args.config else {}
+    return settings.merge(from_file, settings.parse_set(args.set))
+
+
+def _cmd_config(args: argparse.Namespace) -> int:
+    from evolution.api import make_config
+    from evolution.settings import to_toml
+
+    config = make_config(args.method, **_settings(args))
+    sys.stdout.write(to_toml(config, method=args.method))
+    return 0
+
+
 def _cmd_evolve(args: argparse.Namespace) -> int:
     from evolution import experiment
 
-    overrides = experiment.load_config_file(args.config) if args.config else {}
-    overrides.update(experiment.parse_set(args.set))
+    overrides = _settings(args)
     out = args.out if args.out is not None else experiment.default_out_dir(args.method, args.seed)
     try:
         path, table = experiment.evolve(
@@ -197,14 +213,22 @@ def _cmd_resume(args: argparse.Namespace) -> int:
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from evolution import experiment
+    from evolution.grid import check_grid
+    from evolution.settings import parse_grid
     from evolution.sweep import SweepSpec, check_ray_address, parse_seeds, sweep
 
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-    overrides = experiment.load_config_file(args.config) if args.config else {}
-    overrides.update(experiment.parse_set(args.set))
     spec = SweepSpec(
-        methods, parse_seeds(args.seeds), args.generations, overrides, policies=args.policies
+        methods,
+        parse_seeds(args.seeds),
+        args.generations,
+        _settings(args),
+        policies=args.policies,
+        grid=parse_grid(args.grid),
     )
+    spec.check()  # every cell's settings, before anything is written
+    if args.resume:
+        check_grid(args.out, spec.grid)
     experiment.policies_by_name(args.policies)  # the shipped values are installed
     if args.workers is not None and args.workers < 1:
         raise CliError(f"--workers must be >= 1, got {args.workers}")
@@ -257,17 +281,24 @@ def _cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_run_options(p: argparse.ArgumentParser) -> None:
+def _add_setting_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "--config", default=None, help="TOML or JSON file of config overrides (the keys of --set)"
+        "--config",
+        default=None,
+        help="TOML or JSON file of settings, e.g. the output of `cyber-rodent config`",
     )
     p.add_argument(
         "--set",
         action="append",
         metavar="KEY=VALUE",
         default=[],
-        help="override one config field, e.g. --set population_size=20 (repeatable)",
+        help="change one setting, e.g. --set survival.mate_distance=0.4 (repeatable; "
+        "`cyber-rodent config` lists every key)",
     )
+
+
+def _add_run_options(p: argparse.ArgumentParser) -> None:
+    _add_setting_options(p)
     p.add_argument(
         "--policies",
         default="trained",
@@ -399,10 +430,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     sweep = sub.add_parser(
         "sweep",
-        help="many runs (methods x seeds) in parallel: local processes or a Ray cluster",
-        description="Run every method x seed, one process per run (or one Ray task per run "
-        "with --ray), each in <out>/<method>-seed<NNN>; failed runs are retried from their "
-        "last checkpoint. Results are identical whichever executor ran them.",
+        help="many runs (grid cells x methods x seeds) in parallel: local processes or Ray",
+        description="Run every method x seed (x grid cell), one process per run (or one Ray "
+        "task per run with --ray), each in <out>/<method>-seed<NNN> (with --grid: "
+        "<out>/<cell>/<method>-seed<NNN>); failed runs are retried from their last "
+        "checkpoint. Results are identical whichever executor ran them.",
     )
     sweep.add_argument("--methods", default="ee,ce", help="comma list of ee, ce")
     sweep.add_argument("--seeds", default="0-19", help="seeds: N, A-B or a comma list")
@@ -420,8 +452,26 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="ADDRESS",
         help="run on Ray: auto, HOST:PORT, ray://HOST:PORT, or local",
     )
+    sweep.add_argument(
+        "--grid",
+        action="append",
+        metavar="KEY=V1,V2,...",
+        default=[],
+        help="a grid axis, e.g. --grid survival.reflex_max_steps=4,8,16 (repeatable: every "
+        "cell of the product runs every method and seed)",
+    )
     _add_run_options(sweep)
     sweep.set_defaults(func=_cmd_sweep)
+
+    config = sub.add_parser(
+        "config",
+        help="print every setting, resolved, as commented TOML (a valid --config file)",
+        description="Print the resolved configuration (the paper's defaults, then --config, "
+        "then --set) as TOML: each setting with its meaning, allowed range, unit and source.",
+    )
+    config.add_argument("--method", default="ee", choices=("ee", "ce"))
+    _add_setting_options(config)
+    config.set_defaults(func=_cmd_config)
 
     plot = sub.add_parser(
         "plot",

@@ -12,7 +12,9 @@ maximum not below a minimum, say) follow in ``__post_init__`` with :func:`check_
   value, e.g. ``max_energy must be a number in (0, 1e+09], got -1``.
 
 The rules are data (``dataclasses.fields(cfg)[i].metadata[RULE]``), so a command that prints a
-config can also print each field's allowed range (:func:`describe`).
+config can also print each field's allowed range (:func:`describe`). A field may also declare its
+``unit`` and its ``source`` (the paper's table, or the ``docs/design.md`` section that argues the
+choice), kept in the metadata beside the rule (:data:`UNIT`, :data:`SOURCE`) for the same reason.
 """
 
 from __future__ import annotations
@@ -27,6 +29,10 @@ import numpy as np
 
 #: Key of a field's rule in its dataclass metadata.
 RULE = "cyber_rodent.rule"
+#: Key of a field's unit ("m", "control steps", ...) in its dataclass metadata.
+UNIT = "cyber_rodent.unit"
+#: Key of a field's source (paper table or design section) in its dataclass metadata.
+SOURCE = "cyber_rodent.source"
 
 T = TypeVar("T")
 
@@ -145,9 +151,21 @@ class ChoiceRule:
 Rule = IntegerRule | NumberRule | BooleanRule | ChoiceRule
 
 
-def integer(default: int, low: float = -math.inf, high: float = math.inf) -> int:
+def _metadata(rule: Rule, unit: str, source: str) -> dict[str, object]:
+    return {RULE: rule, UNIT: unit, SOURCE: source}
+
+
+def integer(
+    default: int,
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    unit: str = "",
+    source: str = "",
+) -> int:
     """A dataclass field holding an integer in [low, high] (see :func:`validate_fields`)."""
-    return dataclasses.field(default=default, metadata={RULE: IntegerRule(low, high)})
+    rule = IntegerRule(low, high)
+    return dataclasses.field(default=default, metadata=_metadata(rule, unit, source))
 
 
 def number(
@@ -157,21 +175,23 @@ def number(
     *,
     low_open: bool = False,
     high_open: bool = False,
+    unit: str = "",
+    source: str = "",
 ) -> float:
     """A dataclass field holding a finite number in the range (see :func:`validate_fields`)."""
     rule = NumberRule(low, high, low_open, high_open)
-    return dataclasses.field(default=default, metadata={RULE: rule})
+    return dataclasses.field(default=default, metadata=_metadata(rule, unit, source))
 
 
-def boolean(default: bool) -> bool:
+def boolean(default: bool, *, source: str = "") -> bool:
     """A dataclass field holding True or False (see :func:`validate_fields`)."""
-    return dataclasses.field(default=default, metadata={RULE: BooleanRule()})
+    return dataclasses.field(default=default, metadata=_metadata(BooleanRule(), "", source))
 
 
-def choice(default: T, choices: Sequence[T]) -> T:
+def choice(default: T, choices: Sequence[T], *, source: str = "") -> T:
     """A dataclass field holding one of ``choices`` (see :func:`validate_fields`)."""
     rule = ChoiceRule(tuple(choices))
-    return dataclasses.field(default=default, metadata={RULE: rule})
+    return dataclasses.field(default=default, metadata=_metadata(rule, "", source))
 
 
 def validate_fields(config: object, prefix: str = "") -> None:
@@ -201,6 +221,8 @@ def describe(config_type: type, name: str) -> str:
 
 __all__ = [
     "RULE",
+    "SOURCE",
+    "UNIT",
     "BooleanRule",
     "ChoiceRule",
     "IntegerRule",

@@ -26,8 +26,11 @@ is touched); the result is bit-identical to an uninterrupted run. Without ``resu
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import os
+import subprocess
+from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,7 +39,7 @@ import numpy as np
 
 from behaviours import BehaviourPolicies
 from cyber_rodent.atomic import atomic_output, remove_stale_temporaries, write_text
-from evolution.config import EvolutionConfig, GeneticConfig
+from evolution.config import EvolutionConfig
 from evolution.runner import (
     METHODS,
     EvolutionRunner,
@@ -45,16 +48,15 @@ from evolution.runner import (
     latest_checkpoint,
     policy_identity,
 )
+from evolution.settings import FLAT_KEYS, apply, changed, settings
 
 if TYPE_CHECKING:
     import pandas as pd
 
-_EVOLUTION_FIELDS = {f.name for f in dataclasses.fields(EvolutionConfig)} - {"genetics"}
-_GENETIC_FIELDS = {f.name for f in dataclasses.fields(GeneticConfig)}
-_RUN_FIELDS = {"vision"}
-_WORLD_FIELDS = {"n_packs"}
-#: Keyword overrides :func:`run` and :func:`make_config` accept.
-OVERRIDES = tuple(sorted(_EVOLUTION_FIELDS | _GENETIC_FIELDS | _RUN_FIELDS | _WORLD_FIELDS))
+#: Keyword overrides :func:`run` and :func:`make_config` accept: every dotted key of
+#: :mod:`evolution.settings` (``survival.mate_distance``) and the flat names of earlier versions
+#: (``population_size``).
+OVERRIDES = tuple(sorted({*settings(), *FLAT_KEYS}))
 
 STATISTICS_FILE = "statistics.csv"
 ROBOT_STATISTICS_FILE = "statistics_per_robot.csv"
@@ -72,21 +74,16 @@ def make_config(
     Args:
         method: ``"ee"`` or ``"ce"``.
         config: a base run or evolution config.
-        **overrides: fields of :class:`EvolutionConfig` (``population_size``, ``n_robots``,
-            ``lifetime_steps``, ...), of :class:`GeneticConfig` (``crossover_probability``,
-            ``mutation_probability``, ...), ``n_packs`` or ``vision``.
+        **overrides: settings by dotted key (``**{"survival.mate_distance": 0.4}``) or by the
+            flat names of earlier versions (``population_size=20``); see
+            :mod:`evolution.settings`.
 
     Raises:
-        ValueError: an unknown method or override name (the message lists the allowed ones),
-            or an invalid value (the config's own check names the field and its range).
+        ValueError: an unknown method or override name (the message names the closest valid
+            keys), or an invalid value (the message names the key and its allowed range).
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    unknown = sorted(set(overrides) - set(OVERRIDES))
-    if unknown:
-        raise ValueError(
-            f"unknown config override(s) {', '.join(unknown)}; allowed: {', '.join(OVERRIDES)}"
-        )
     if config is None:
         base = RunConfig(method=method)
     elif isinstance(config, EvolutionConfig):
@@ -95,20 +92,7 @@ def make_config(
         base = config.replace(method=method)
     else:
         raise ValueError(f"config must be a RunConfig or EvolutionConfig, got {type(config)!r}")
-    genetic = {k: v for k, v in overrides.items() if k in _GENETIC_FIELDS}
-    evolution = {k: v for k, v in overrides.items() if k in _EVOLUTION_FIELDS}
-    if genetic:
-        evolution["genetics"] = dataclasses.replace(base.evolution.genetics, **genetic)
-    changes: dict[str, Any] = {}
-    if evolution:
-        changes["evolution"] = dataclasses.replace(base.evolution, **evolution)
-    if "vision" in overrides:
-        changes["vision"] = overrides["vision"]
-    result = base.replace(**changes) if changes else base
-    if "n_packs" in overrides:
-        world = dataclasses.replace(result.world, n_packs=overrides["n_packs"])
-        result = result.replace(world=world)
-    return result
+    return apply(base, overrides)
 
 
 def run(
@@ -216,15 +200,49 @@ def holds_a_run(out: Path) -> bool:
 
 
 def run_record(runner: EvolutionRunner, generations: int) -> dict[str, Any]:
-    """The content of ``run.json``: config, seed, policies, target, versions, summary."""
+    """The content of ``run.json``: config, the settings changed from the paper's defaults,
+    seed, policies, target, versions and source commit, summary."""
     return {
         "config": dataclasses.asdict(runner.config),
+        "settings": changed(runner.config),
         "seed": runner.seed,
         "policies": policy_identity(runner.policies),
         "target_generations": generations,
-        "versions": {"mujoco": mujoco.__version__, "numpy": np.__version__},
+        "versions": {
+            "cyber-rodent": package_version(),
+            "git_commit": source_commit(),
+            "mujoco": mujoco.__version__,
+            "numpy": np.__version__,
+        },
         "summary": runner.summary(),
     }
+
+
+def package_version() -> str | None:
+    """The installed version of this package (None when run from an uninstalled tree)."""
+    try:
+        return metadata.version("cyber-rodent")
+    except metadata.PackageNotFoundError:
+        return None
+
+
+@functools.cache
+def source_commit() -> str | None:
+    """The git commit of the source tree this package runs from, ``+dirty`` if it has local
+    changes; None outside a git checkout (a wheel install). Results are traced to their code."""
+    root = Path(__file__).resolve().parent.parent
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"],
+            capture_output=True, text=True, timeout=10, check=True,
+        ).stdout.strip()
+        status = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True, text=True, timeout=10, check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+dirty" if status else "") if head else None
 
 
 def write_tables(out: Path, statistics: pd.DataFrame, per_robot: pd.DataFrame) -> None:

@@ -49,13 +49,13 @@ class GeneticConfig:
         tournament_size: individuals per tournament in the centralised GA (paper §4.1: 2).
     """
 
-    initial_weight_low: float = number(-1.0)
-    initial_weight_high: float = number(1.0)
-    crossover_probability: float = number(0.6, 0.0, 1.0)
-    mutation_probability: float = number(0.1, 0.0, 1.0)
-    mutation_low: float = number(-0.5)
-    mutation_high: float = number(0.5)
-    tournament_size: int = integer(2, 1)
+    initial_weight_low: float = number(-1.0, source="paper Table 2")
+    initial_weight_high: float = number(1.0, source="paper Table 2")
+    crossover_probability: float = number(0.6, 0.0, 1.0, source="paper Table 2")
+    mutation_probability: float = number(0.1, 0.0, 1.0, source="paper Table 2")
+    mutation_low: float = number(-0.5, source="paper Table 2")
+    mutation_high: float = number(0.5, source="paper Table 2")
+    tournament_size: int = integer(2, 1, unit="individuals", source="paper §4.1")
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -99,16 +99,20 @@ class EvolutionConfig:
         genetics: the genome and its operators (Table 2).
     """
 
-    lifetime_steps: int = integer(400, 1)
-    time_sharing_steps: int = integer(100, 1)
-    population_size: int = integer(100, 1)
-    n_robots: int = integer(4, 1)
-    initial_energy: float = number(100.0, 0.0, low_open=True)
-    max_energy: float = number(200.0, 0.0, low_open=True)
-    max_recharge_steps: int = integer(40, 1)
-    fitness_time_unit: float = number(100.0, 0.0, low_open=True)
-    ce_fitness_requires_survival: bool = boolean(True)
-    ee_close_quorum: float = number(0.9, 0.0, 1.0, low_open=True)
+    lifetime_steps: int = integer(400, 1, unit="control steps", source="paper Table 1")
+    time_sharing_steps: int = integer(100, 1, unit="control steps", source="paper Table 1")
+    population_size: int = integer(100, 1, unit="agents", source="paper Table 1")
+    n_robots: int = integer(4, 1, unit="robots", source="paper Table 1")
+    initial_energy: float = number(100.0, 0.0, low_open=True, source="paper Table 1")
+    max_energy: float = number(200.0, 0.0, low_open=True, source="paper Table 1")
+    max_recharge_steps: int = integer(40, 1, unit="control steps", source="paper Table 1")
+    fitness_time_unit: float = number(
+        100.0, 0.0, low_open=True, unit="control steps", source="paper §3.3"
+    )
+    ce_fitness_requires_survival: bool = boolean(True, source="docs/design.md §9.15")
+    ee_close_quorum: float = number(
+        0.9, 0.0, 1.0, low_open=True, unit="share of slots", source="docs/design.md §9.17"
+    )
     genetics: GeneticConfig = field(default_factory=GeneticConfig)
 
     def __post_init__(self) -> None:

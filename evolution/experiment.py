@@ -1,11 +1,13 @@
 """Experiments as a user runs them: run directories, config files, ``--set`` overrides, resume,
 figures and videos. The command line (``cyber-rodent evolve|resume|sweep|plot|render``) is a
-thin layer over this module.
+thin layer over this module; settings (``--set``, ``--config``, ``--grid``) are read by
+:mod:`evolution.settings`.
 
 A run directory holds everything needed to tell what produced what:
 
-- ``run.json``: the resolved config (human-readable JSON), seed, behaviour policies, target
-  generations and headline numbers (written by :func:`evolution.api.run`);
+- ``run.json``: the resolved config (human-readable JSON), the settings that differ from the
+  paper's defaults by dotted key, seed, behaviour policies, target generations, package version
+  and git commit, and headline numbers (written by :func:`evolution.api.run`);
 - ``versions.json``: Python, this package and its dependencies' versions, the command line;
 - ``statistics.csv``: the per-generation statistics table (pandas-readable);
 - ``events.csv``: the event log (dockings, recharge ends, matings, deaths, births);
@@ -26,7 +28,6 @@ import os
 import platform
 import shutil
 import sys
-import tomllib
 import typing
 from importlib import metadata
 from pathlib import Path
@@ -38,13 +39,11 @@ from behaviours import BehaviourPolicies
 from cyber_rodent.atomic import atomic_output, write_text
 from evolution.api import (
     CHECKPOINT_DIR,
-    OVERRIDES,
     RUN_FILE,
     STATISTICS_FILE,
     holds_a_run,
     make_config,
 )
-from evolution.config import EvolutionConfig, GeneticConfig
 from evolution.runner import EvolutionRunner, RunConfig, latest_checkpoint, policy_identity
 
 VERSIONS_FILE = "versions.json"
@@ -57,93 +56,6 @@ RECORDED_DISTRIBUTIONS = (
 )  # fmt: skip
 #: The full paper experiment, printed as a hint after a short default run.
 PAPER_COMMAND = "cyber-rodent sweep --methods ee,ce --seeds 0-19 --generations 120 --out runs/fig6"
-
-
-# --- configuration from files and --set ---------------------------------------------------------
-def _override_types() -> dict[str, type]:
-    """The Python type of every accepted override, from its default value."""
-    types: dict[str, type] = {}
-    for cls in (EvolutionConfig, GeneticConfig):
-        for f in dataclasses.fields(cls):
-            if f.name in OVERRIDES and f.default is not dataclasses.MISSING:
-                types[f.name] = type(f.default)
-    types["vision"] = str
-    types["n_packs"] = int
-    return types
-
-
-def parse_value(key: str, text: str) -> Any:
-    """Convert ``text`` to the type of config field ``key``.
-
-    Raises:
-        ValueError: an unknown key (listing the allowed ones) or a value of the wrong type.
-    """
-    types = _override_types()
-    if key not in types:
-        raise ValueError(f"unknown config key {key!r}; allowed: {', '.join(sorted(types))}")
-    kind = types[key]
-    try:
-        if kind is bool:
-            lowered = text.strip().lower()
-            if lowered not in ("true", "false", "1", "0", "yes", "no"):
-                raise ValueError
-            return lowered in ("true", "1", "yes")
-        if kind is int:
-            return int(text)
-        if kind is float:
-            return float(text)
-        return str(text)
-    except ValueError:
-        raise ValueError(
-            f"{key}={text!r}: expected {'true/false' if kind is bool else 'an ' + kind.__name__}"
-        ) from None
-
-
-def parse_set(items: list[str] | None) -> dict[str, Any]:
-    """``["population_size=20", ...]`` → typed overrides (see :func:`parse_value`)."""
-    overrides: dict[str, Any] = {}
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise ValueError(f"--set {item!r}: use KEY=VALUE, e.g. --set population_size=20")
-        overrides[key.strip()] = parse_value(key.strip(), value.strip())
-    return overrides
-
-
-def load_config_file(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Overrides from a TOML or JSON file of ``key = value`` pairs (the keys of ``--set``).
-
-    Raises:
-        ValueError: unreadable or malformed file, unknown key, or a value of the wrong type.
-    """
-    p = Path(path)
-    try:
-        raw = p.read_bytes()
-    except OSError as err:
-        raise ValueError(f"--config {p}: {err.strerror or err}") from None
-    try:
-        data = json.loads(raw) if p.suffix.lower() == ".json" else tomllib.loads(raw.decode())
-    except (ValueError, UnicodeDecodeError) as err:
-        raise ValueError(
-            f"--config {p}: not valid {'JSON' if p.suffix == '.json' else 'TOML'} ({err})"
-        ) from None
-    if not isinstance(data, dict):
-        raise ValueError(f"--config {p}: expected a table of key = value pairs")
-    types = _override_types()
-    out: dict[str, Any] = {}
-    for key, value in data.items():
-        if key not in types:
-            raise ValueError(
-                f"--config {p}: unknown key {key!r}; allowed: {', '.join(sorted(types))}"
-            )
-        kind = types[key]
-        ok = isinstance(value, kind) and not (kind is int and isinstance(value, bool))
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value, ok = float(value), True
-        if not ok:
-            raise ValueError(f"--config {p}: {key} must be {kind.__name__}, got {value!r}")
-        out[key] = value
-    return out
 
 
 # --- policies ----------------------------------------------------------------------------------
@@ -400,13 +312,34 @@ def _dataclass_in(hint: Any) -> type | None:
 def plot_run_dir(path: str | os.PathLike[str]) -> list[Path]:
     """Draw the figures of a run directory or of a sweep directory into ``<path>/figures``.
 
+    A sweep over a grid of settings gets each cell's figures in ``<cell>/figures`` and the
+    comparison of its cells in ``figures/cells.{csv,png,pdf}`` (:mod:`evolution.grid`).
+
     Raises:
         ValueError: no statistics found under ``path``.
     """
+    from evolution.grid import cells, read_grid, write_cell_comparison
+
+    root = Path(path)
+    grid = read_grid(root)
+    if grid is None:
+        return _plot_methods(root)
+    written: list[Path] = []
+    for cell in cells(grid):
+        try:
+            written += _plot_methods(root / cell.name)
+        except ValueError:
+            continue  # a cell none of whose runs has finished a generation yet
+    if not written:
+        raise ValueError(f"no {STATISTICS_FILE} found in the cells of {root}")
+    return written + write_cell_comparison(root)
+
+
+def _plot_methods(root: Path) -> list[Path]:
+    """Fig. 6 and its summary for the runs of one directory (a run, a sweep or a cell)."""
     from evolution.figures import plot_fig6, summarise_runs
     from evolution.sweep import load_sweep
 
-    root = Path(path)
     runs = load_sweep(root)
     if not any(runs.values()):
         raise ValueError(f"no {STATISTICS_FILE} found in {root} or its run directories")

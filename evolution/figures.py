@@ -36,7 +36,8 @@ METHOD_STYLE = {
 FIGURE_FORMATS = ("png", "pdf")
 
 
-def _pyplot() -> ModuleType:
+def styled_pyplot() -> ModuleType:
+    """Matplotlib's pyplot on the headless Agg backend, in the package's figure style."""
     import matplotlib
 
     matplotlib.use("Agg", force=True)
@@ -131,7 +132,7 @@ def summarise_runs(
     return pd.DataFrame(rows)
 
 
-def _save(fig: Figure, out_base: Path) -> list[Path]:
+def save_figure(fig: Figure, out_base: Path) -> list[Path]:
     out_base.parent.mkdir(parents=True, exist_ok=True)
     paths = []
     for ext in FIGURE_FORMATS:
@@ -156,7 +157,7 @@ def plot_fig6(
     """
     if not runs_by_method or not any(runs_by_method.values()):
         raise ValueError("plot_fig6 needs at least one run")
-    plt = _pyplot()
+    plt = styled_pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10.5, 4.0))
     panels = (
         ("batteries_mean", "Captured batteries per agent", "(a) Captured batteries"),
@@ -185,7 +186,7 @@ def plot_fig6(
         fontsize=10,
     )
     fig.tight_layout()
-    paths = _save(fig, Path(out_base))
+    paths = save_figure(fig, Path(out_base))
     plt.close(fig)
     return paths
 
@@ -232,7 +233,7 @@ def plot_per_robot(
         raise ValueError(f"per-robot table lacks column(s) {sorted(missing)}")
     if per_robot.empty:
         raise ValueError("per-robot table is empty")
-    plt = _pyplot()
+    plt = styled_pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 4.0))
     for robot, rows in per_robot.sort_values("generation").groupby("robot"):
         (line,) = ax.plot(
@@ -259,6 +260,6 @@ def plot_per_robot(
     ax.legend(frameon=False)
     ax.set_title(title or "Captured batteries per robot (unmated agents scored 0)", fontsize=11)
     fig.tight_layout()
-    paths = _save(fig, Path(out_base))
+    paths = save_figure(fig, Path(out_base))
     plt.close(fig)
     return paths

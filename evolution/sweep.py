@@ -1,8 +1,9 @@
-"""Many runs (methods × seeds) in parallel: local processes by default, or a Ray cluster.
+"""Many runs (grid cells × methods × seeds) in parallel: local processes, or a Ray cluster.
 
 Each run is independent and its result depends only on its config and seed, so a sweep gives
 identical tables whichever executor or how many workers ran it. Every run writes its own run
-directory ``<out>/<method>-seed<NNN>`` through :func:`evolution.api.run`, checkpointing every
+directory ``<out>/<method>-seed<NNN>`` (``<out>/<cell>/<method>-seed<NNN>`` in a sweep over a
+grid of settings, :mod:`evolution.grid`) through :func:`evolution.api.run`, checkpointing every
 generation; a run whose worker fails or is killed is submitted again with ``resume=True`` and
 continues from its last checkpoint, so a retry costs at most one generation and changes nothing
 in the result.
@@ -33,11 +34,12 @@ import socket
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import pandas as pd
 
 from cyber_rodent.validation import check_integer, choice, validate_fields
+from evolution.grid import Cell, Grid, cells
 
 METHODS = ("ee", "ce")
 EXECUTORS = ("local", "ray")
@@ -47,17 +49,27 @@ POLICIES = ("trained", "reactive")
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "LP_NUM_THREADS": "1"}
 
 
+class SweepRun(NamedTuple):
+    """One member of a sweep: a method and seed, in a grid cell ("" without a grid)."""
+
+    method: str
+    seed: int
+    cell: str = ""
+
+
 @dataclass(frozen=True)
 class SweepSpec:
     """What a sweep runs.
 
     Attributes:
         methods: subset of ``("ee", "ce")``.
-        seeds: the seeds, each run once per method.
+        seeds: the seeds, each run once per method (and cell).
         generations: generations per run.
-        overrides: config overrides passed to every run (see :func:`evolution.api.make_config`).
+        overrides: settings passed to every run (see :func:`evolution.api.make_config`).
         policies: basic behaviours: ``"trained"`` (the shipped values) or ``"reactive"`` (the
             hand-written baseline).
+        grid: axes of settings, ``((dotted key, values), ...)``; every cell of their product
+            runs every method and seed, its settings over ``overrides``. Empty: one cell.
     """
 
     methods: tuple[str, ...]
@@ -65,6 +77,7 @@ class SweepSpec:
     generations: int
     overrides: dict[str, Any] = field(default_factory=dict)
     policies: str = choice("trained", POLICIES)
+    grid: Grid = ()
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -81,9 +94,35 @@ class SweepSpec:
         check_integer("generations", self.generations, 1)
 
     @property
-    def runs(self) -> list[tuple[str, int]]:
-        """(method, seed) pairs in a fixed order."""
-        return [(m, s) for m in self.methods for s in self.seeds]
+    def cells(self) -> tuple[Cell, ...]:
+        """The grid's cells (one unnamed cell without a grid)."""
+        return cells(self.grid) or (Cell("", {}),)
+
+    @property
+    def runs(self) -> list[SweepRun]:
+        """Every (method, seed, cell) in a fixed order: cell by cell, method, then seed."""
+        return [
+            SweepRun(m, s, c.name) for c in self.cells for m in self.methods for s in self.seeds
+        ]
+
+    def settings_of(self, cell: str) -> dict[str, Any]:
+        """The settings of the runs in ``cell``: the sweep's overrides, then the cell's."""
+        from evolution.settings import merge
+
+        chosen = next(c for c in self.cells if c.name == cell)
+        return merge(self.overrides, chosen.settings)
+
+    def check(self) -> None:
+        """Build every cell's config for every method, so a bad setting fails before any run.
+
+        Raises:
+            ValueError: the first setting a config refuses (one line naming the key).
+        """
+        from evolution.api import make_config
+
+        for c in self.cells:
+            for method in self.methods:
+                make_config(method, **self.settings_of(c.name))
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
@@ -108,9 +147,9 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     return tuple(seeds)
 
 
-def run_dir(out_dir: str | os.PathLike[str], method: str, seed: int) -> Path:
+def run_dir(out_dir: str | os.PathLike[str], method: str, seed: int, cell: str = "") -> Path:
     """The run directory of one sweep member."""
-    return Path(out_dir) / f"{method}-seed{seed:03d}"
+    return Path(out_dir) / cell / f"{method}-seed{seed:03d}"
 
 
 def run_one(
@@ -178,8 +217,8 @@ class _Progress:
         if self.bar is None:
             return
         done, batteries, matings = 0, [], []
-        for method, seed in self.spec.runs:
-            path = run_dir(self.out_dir, method, seed) / "statistics.csv"
+        for member in self.spec.runs:
+            path = run_dir(self.out_dir, *member) / "statistics.csv"
             try:
                 table = pd.read_csv(path)
             except (OSError, pd.errors.EmptyDataError, pd.errors.ParserError):
@@ -215,12 +254,12 @@ def sweep(
     max_retries: int = 2,
     progress: bool = True,
     poll_seconds: float = 2.0,
-) -> dict[tuple[str, int], pd.DataFrame]:
-    """Run every (method, seed) of ``spec``; return their statistics tables.
+) -> dict[SweepRun, pd.DataFrame]:
+    """Run every (method, seed, cell) of ``spec``; return their statistics tables.
 
     Args:
         spec: methods, seeds, generations and overrides.
-        out_dir: parent directory of the run directories.
+        out_dir: parent directory of the run directories (and of the cells' directories).
         workers: concurrent runs for the local executor (default: the number of CPUs).
         executor: ``"local"`` (one process per run) or ``"ray"`` (one Ray task per run).
         ray_address: with ``executor="ray"``: ``"auto"``, ``"HOST:PORT"``, ``"ray://HOST:PORT"``
@@ -242,14 +281,16 @@ def sweep(
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     if not isinstance(max_retries, int) or max_retries < 0:
         raise ValueError(f"max_retries must be an integer >= 0, got {max_retries!r}")
-    from evolution.api import make_config
+    from evolution.grid import check_grid, write_grid
 
-    for method in spec.methods:  # validate overrides once, before anything runs
-        make_config(method, **spec.overrides)
+    spec.check()  # every cell's settings, before anything runs
     if executor == "ray":
         check_ray_address(ray_address)
     out = Path(out_dir)
+    check_grid(out, spec.grid)
     out.mkdir(parents=True, exist_ok=True)
+    if spec.grid:
+        write_grid(out, spec.grid)
     bar = _Progress(spec, out, progress)
     try:
         if executor == "local":
@@ -263,10 +304,10 @@ def sweep(
 
 def _sweep_local(
     spec: SweepSpec, out: Path, workers: int, max_retries: int, bar: _Progress, poll_seconds: float
-) -> dict[tuple[str, int], pd.DataFrame]:
-    results: dict[tuple[str, int], pd.DataFrame] = {}
-    failures: dict[tuple[str, int], int] = {}
-    errors: dict[tuple[str, int], BaseException] = {}
+) -> dict[SweepRun, pd.DataFrame]:
+    results: dict[SweepRun, pd.DataFrame] = {}
+    failures: dict[SweepRun, int] = {}
+    errors: dict[SweepRun, BaseException] = {}
     todo = list(spec.runs)
     context = multiprocessing.get_context("spawn")
     saved_env = {k: os.environ.get(k) for k in WORKER_ENV}
@@ -277,14 +318,14 @@ def _sweep_local(
             futures = {
                 pool.submit(
                     run_one,
-                    m,
-                    s,
+                    member.method,
+                    member.seed,
                     spec.generations,
-                    str(run_dir(out, m, s)),
-                    dict(spec.overrides),
+                    str(run_dir(out, *member)),
+                    spec.settings_of(member.cell),
                     spec.policies,
-                ): (m, s)
-                for m, s in todo
+                ): member
+                for member in todo
             }
             todo = []
             pending = set(futures)
@@ -322,7 +363,7 @@ def _sweep_ray(
     max_retries: int,
     bar: _Progress,
     poll_seconds: float,
-) -> dict[tuple[str, int], pd.DataFrame]:
+) -> dict[SweepRun, pd.DataFrame]:
     try:
         import ray
     except ImportError:
@@ -347,17 +388,17 @@ def _sweep_ray(
         remote = ray.remote(num_cpus=1, max_retries=max_retries, retry_exceptions=True)(run_one)
         refs = {
             remote.remote(
-                m,
-                s,
+                member.method,
+                member.seed,
                 spec.generations,
-                str(run_dir(out, m, s).resolve()),
-                dict(spec.overrides),
+                str(run_dir(out, *member).resolve()),
+                spec.settings_of(member.cell),
                 spec.policies,
-            ): (m, s)
-            for m, s in spec.runs
+            ): member
+            for member in spec.runs
         }
-        results: dict[tuple[str, int], pd.DataFrame] = {}
-        errors: dict[tuple[str, int], BaseException] = {}
+        results: dict[SweepRun, pd.DataFrame] = {}
+        errors: dict[SweepRun, BaseException] = {}
         pending = list(refs)
         while pending:
             done, pending = ray.wait(pending, num_returns=1, timeout=poll_seconds)
@@ -379,10 +420,11 @@ class SweepFailed(RuntimeError):
     """Some runs of a sweep failed even after their retries (the others are on disk)."""
 
 
-def _raise_failures(errors: dict[tuple[str, int], BaseException]) -> None:
+def _raise_failures(errors: dict[SweepRun, BaseException]) -> None:
     if errors:
         lines = "; ".join(
-            f"{m} seed {s}: {type(e).__name__}: {e}" for (m, s), e in sorted(errors.items())
+            f"{m} seed {s}{' in ' + c if c else ''}: {type(e).__name__}: {e}"
+            for (m, s, c), e in sorted(errors.items())
         )
         raise SweepFailed(f"{len(errors)} run(s) failed after retries: {lines}")
 

@@ -107,7 +107,7 @@ def test_resume_with_another_config_or_a_corrupt_checkpoint_loses_nothing(tmp_pa
         (dict(mutation_probability=-0.1), r"mutation_probability must be .* \[0, 1\]"),
         (dict(time_sharing_steps=500), r"time_sharing_steps must be an integer in \[1, 400\]"),
         (dict(n_packs=-1), r"n_packs must be an integer in \[0,"),
-        (dict(lifetime=400), r"unknown config override\(s\) lifetime; allowed: .*lifetime_steps"),
+        (dict(lifetime=400), r"unknown config key 'lifetime'; closest: .*evolution.lifetime_steps"),
         (dict(vision="sonar"), "vision must be one of geometric, rendered"),
     ],
 )

@@ -148,10 +148,12 @@ def _serial(tmp_path: Path, spec: SweepSpec) -> dict:
     from behaviours import BehaviourPolicies
     from evolution.api import run
 
+    reactive = BehaviourPolicies.reactive()
     return {
-        (m, s): run(m, spec.generations, s, policies=BehaviourPolicies.reactive(), **spec.overrides)
-        for m, s in spec.runs
-    }
+        member: run(member.method, spec.generations, member.seed, policies=reactive,
+                    **spec.settings_of(member.cell))
+        for member in spec.runs
+    }  # fmt: skip
 
 
 def test_local_sweep_equals_serial_runs(tmp_path: Path) -> None:
@@ -191,7 +193,10 @@ def test_parse_seeds() -> None:
     [
         (["evolve", "--method", "xx"], "invalid choice"),
         (["evolve", "--set", "no_such_key=1"], "unknown config key 'no_such_key'"),
-        (["evolve", "--set", "population_size=many"], "expected an int"),
+        (
+            ["evolve", "--set", "population_size=many"],
+            "evolution.population_size must be an integer in [1, ∞), got 'many'",
+        ),
         (["evolve", "--set", "crossover_probability=2"], "crossover_probability"),
         (["evolve", "--set", "population_size=10"], "divisible"),
         (["evolve", "--generations", "0"], "generations"),

@@ -79,9 +79,9 @@ class VisionNoise:
         dropout: probability that a visible target is missed in a frame.
     """
 
-    bearing_std_deg: float = number(0.0, 0.0, 90.0)
-    distance_rel_std: float = number(0.0, 0.0, 1.0)
-    dropout: float = number(0.0, 0.0, 1.0)
+    bearing_std_deg: float = number(0.0, 0.0, 90.0, unit="deg", source="docs/design.md §9.24")
+    distance_rel_std: float = number(0.0, 0.0, 1.0, source="docs/design.md §9.24")
+    dropout: float = number(0.0, 0.0, 1.0, unit="probability", source="docs/design.md §9.24")
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -121,18 +121,22 @@ class CameraConfig:
         near_clip: m, OpenGL near plane of the views (must be inside the robot's own body).
     """
 
-    n_views: int = integer(4, 3, 16)
-    view_width: int = integer(128, 4, MAX_IMAGE_SIDE)
-    height: int = integer(192, 4, MAX_IMAGE_SIDE)
-    elevation_min_deg: float = number(-45.0, -80.0, 0.0, high_open=True)
-    elevation_max_deg: float = number(3.0, 0.0, 60.0)
-    max_range: float = number(DEFAULT_MAX_DISTANCE, 0.0, 100.0, low_open=True)
+    n_views: int = integer(4, 3, 16, unit="views", source="docs/design.md §6")
+    view_width: int = integer(128, 4, MAX_IMAGE_SIDE, unit="px", source="docs/design.md §6")
+    height: int = integer(192, 4, MAX_IMAGE_SIDE, unit="px", source="docs/design.md §6")
+    elevation_min_deg: float = number(
+        -45.0, -80.0, 0.0, high_open=True, unit="deg", source="docs/design.md §9.20"
+    )
+    elevation_max_deg: float = number(3.0, 0.0, 60.0, unit="deg", source="docs/design.md §9.20")
+    max_range: float = number(
+        DEFAULT_MAX_DISTANCE, 0.0, 100.0, low_open=True, unit="m", source="docs/design.md §9.21"
+    )
     min_blob_area: tuple[int, int, int] = (1, 3, 3)
     led: ColourThreshold = GREEN_LED
     face: ColourThreshold = RED_FACE
     battery: ColourThreshold = BLUE_BATTERY
     noise: VisionNoise = field(default_factory=VisionNoise)
-    near_clip: float = number(0.01, 0.001, 0.05)
+    near_clip: float = number(0.01, 0.001, 0.05, unit="m", source="docs/design.md §6")
 
     def __post_init__(self) -> None:
         validate_fields(self)

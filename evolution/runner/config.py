@@ -59,12 +59,12 @@ class RunConfig:
             sub-configs that disagree (energy numbers, robot count).
     """
 
-    method: str = choice("ee", METHODS)
+    method: str = choice("ee", METHODS, source="paper §4.1")
     evolution: EvolutionConfig = field(default_factory=EvolutionConfig)
     survival: SurvivalConfig = _FROM_EVOLUTION
     world: WorldConfig = _FROM_EVOLUTION
     camera: CameraConfig = field(default_factory=CameraConfig)
-    vision: str = choice("geometric", PROVIDER_NAMES)
+    vision: str = choice("geometric", PROVIDER_NAMES, source="docs/design.md §6")
     profile: HardwareProfile | None = None
 
     def __post_init__(self) -> None:
