@@ -502,7 +502,7 @@ def _toml_value(value: Any) -> str:
 
 def _comment(setting: Setting, width: int = 96) -> list[str]:
     lines = textwrap.wrap(setting.meaning, width - 2) if setting.meaning else []
-    facts = [_describe(setting)]
+    facts = [setting.allowed or _describe(setting)]
     if setting.unit:
         facts.append(f"unit: {setting.unit}")
     if setting.source:

@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 import imageio.v3 as iio
@@ -53,6 +54,8 @@ def test_evolve_plot_render(tmp_path: Path) -> None:
         str(out),
         "--no-progress",
         *tiny_args(),
+        "--set",
+        "survival.mate_distance=0.4",
     )
     assert r.returncode == 0, r.stderr
     assert "cyber-rodent sweep" in r.stdout  # tells the user how to run the full experiment
@@ -63,6 +66,9 @@ def test_evolve_plot_render(tmp_path: Path) -> None:
     assert list(per_robot.columns)[:3] == ["generation", "robot", "batteries_mean"]
     run = json.loads((out / "run.json").read_text())
     assert run["seed"] == 1 and run["config"]["evolution"]["population_size"] == 4
+    assert run["config"]["survival"]["mate_distance"] == 0.4
+    assert run["settings"]["survival.mate_distance"] == 0.4  # what differs from the paper
+    assert {"cyber-rodent", "git_commit"} <= set(run["versions"])
     versions = json.loads((out / "versions.json").read_text())
     assert versions["packages"]["mujoco"] == "3.17.0"
     events = pd.read_csv(out / "events.csv")
@@ -200,6 +206,11 @@ def test_parse_seeds() -> None:
         (["evolve", "--set", "crossover_probability=2"], "crossover_probability"),
         (["evolve", "--set", "population_size=10"], "divisible"),
         (["evolve", "--generations", "0"], "generations"),
+        (["evolve", "--set", "survival.bogus=1"], "unknown config key 'survival.bogus'; closest"),
+        (["evolve", "--set", "survival.mate_distance=0"], "survival.mate_distance must be a"),
+        (["sweep", "--grid", "survival.reflex_max_steps"], "use KEY=V1,V2,..."),
+        (["sweep", "--grid", "survival.reflex_max_steps=4,x"], "reflex_max_steps must be an"),
+        (["sweep", "--grid", "survival.reflex_max_steps=2,8"], "reflex_max_steps must be an"),
         (["sweep", "--seeds", "9-2"], "seed range"),
         (["sweep", "--methods", "ee,xx"], "methods"),
         (["sweep", "--seeds", "0-1", "--ray", "127.0.0.1:1"], "cannot reach a Ray cluster"),
@@ -222,3 +233,39 @@ def test_existing_out_needs_resume_or_force(tmp_path: Path) -> None:
     r = cli("evolve", "--out", str(out), "--force")
     assert r.returncode == 2 and "refusing to delete" in r.stderr
     assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_config_prints_a_commented_toml_that_evolve_accepts(tmp_path: Path) -> None:
+    r = cli("config", "--set", "survival.mate_distance=0.4")
+    assert r.returncode == 0, r.stderr
+    parsed = tomllib.loads(r.stdout)
+    assert parsed["survival"]["mate_distance"] == 0.4
+    assert parsed["evolution"]["lifetime_steps"] == 400
+    assert "# largest IR port-to-port distance" in r.stdout
+    path = tmp_path / "config.toml"
+    path.write_text(r.stdout)
+    r = cli("config", "--config", str(path))
+    assert r.returncode == 0 and tomllib.loads(r.stdout) == parsed
+
+
+def test_grid_sweep_runs_every_cell_and_compares_them(tmp_path: Path) -> None:
+    out = tmp_path / "grid"
+    args = ["sweep", "--methods", "ee", "--seeds", "0", "--generations", "1", "--workers", "2"]
+    grid = ["--grid", "survival.mate_consecutive_steps=1,2", "--policies", "reactive"]
+    r = cli(*args, *grid, "--out", str(out), "--no-progress", *tiny_args())
+    assert r.returncode == 0, r.stderr
+    record = json.loads((out / "grid.json").read_text())
+    assert [c["name"] for c in record["cells"]] == [
+        "mate_consecutive_steps=1", "mate_consecutive_steps=2"
+    ]
+    for steps in (1, 2):
+        run = json.loads((out / f"mate_consecutive_steps={steps}" / "ee-seed000" / "run.json")
+                         .read_text())  # fmt: skip
+        assert run["config"]["survival"]["mate_consecutive_steps"] == steps
+    cells = pd.read_csv(out / "figures" / "cells.csv")
+    assert cells["survival.mate_consecutive_steps"].tolist() == [1, 2]
+    assert (out / "figures" / "cells.png").exists()
+    # Resuming with another grid is refused before anything runs.
+    other = ["--grid", "survival.mate_consecutive_steps=1,3"]
+    r = cli(*args, *other, "--out", str(out), "--resume", "--no-progress", *tiny_args())
+    assert r.returncode == 2 and "another grid" in r.stderr
