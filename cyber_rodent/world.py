@@ -33,11 +33,13 @@ LED_OFF_RGBA = np.array([0.05, 0.15, 0.05, 1.0])
 _PLACEMENT_MARGIN = 0.02  # m, extra gap between placed bodies and to the walls
 _MAX_PACKING_DENSITY = 0.4  # share of the usable field area that placed discs may cover
 _PLACEMENT_ATTEMPTS = 2000
-#: Extra clearance between a pack and the walls (m): a robot (18 cm wide) can always pass
-#: between them, so no robot gets wedged in a pack-wall gap it cannot turn in.
+#: Default extra clearance between a pack and the walls (m, ``WorldConfig.pack_wall_clearance``):
+#: a robot (18 cm wide) can always pass between them, so no robot gets wedged in a pack-wall gap
+#: it cannot turn in.
 PACK_WALL_CLEARANCE = 0.2
-#: Smallest gap between two packs (m): wider than a robot turning in place (0.28 m), so no
-#: robot gets jammed between two packs (a 19 cm gap once held a robot for the rest of a run).
+#: Default smallest gap between two packs (m, ``WorldConfig.pack_gap``): wider than a robot
+#: turning in place (0.28 m), so no robot gets jammed between two packs (a 19 cm gap once held
+#: a robot for the rest of a run).
 PACK_GAP = 0.3
 
 
@@ -46,28 +48,59 @@ def _usable_area() -> float:
     return (2 * half) ** 2
 
 
-def _pack_placement_radius() -> float:
-    """Packs are placed as discs this big, which keeps ``PACK_GAP`` between any two."""
-    return max(C.PACK_RADIUS + PACK_GAP / 2, C.PACK_RADIUS + _PLACEMENT_MARGIN)
+def _pack_placement_radius(pack_gap: float = PACK_GAP) -> float:
+    """Packs are placed as discs this big, which keeps ``pack_gap`` between any two."""
+    return max(C.PACK_RADIUS + pack_gap / 2, C.PACK_RADIUS + _PLACEMENT_MARGIN)
 
 
-def _disc_area(n_robots: int, n_packs: int) -> float:
+def _pack_wall_margin(pack_gap: float, pack_wall_clearance: float) -> float:
+    """How much further from the walls than its placement disc a pack's centre stays: the
+    disc already holds half the pack gap, so only the rest of the clearance is added."""
+    return max(0.0, C.PACK_RADIUS + pack_wall_clearance - _pack_placement_radius(pack_gap))
+
+
+def _disc_area(n_robots: int, n_packs: int, pack_gap: float = PACK_GAP) -> float:
     r_robot = C.BODY_RADIUS + _PLACEMENT_MARGIN
-    r_pack = _pack_placement_radius()
+    r_pack = _pack_placement_radius(pack_gap)
     return math.pi * (n_robots * r_robot**2 + n_packs * r_pack**2)
 
 
-def max_counts() -> tuple[int, int]:
+def _pack_square(pack_gap: float, pack_wall_clearance: float) -> float:
+    """Side of the square that the packs' placement discs stay within (m)."""
+    return C.FIELD_SIZE - 2 * _pack_wall_margin(pack_gap, pack_wall_clearance)
+
+
+def _packs_fit(n_packs: int, pack_gap: float, pack_wall_clearance: float) -> bool:
+    """Do ``n_packs`` placement discs fit in the square the wall clearance leaves them?
+
+    One pack fits wherever its centre has room; more must also stay within the packing
+    density of that square (the rule the whole field's check applies to all discs together).
+    """
+    if n_packs == 0:
+        return True
+    r_pack = _pack_placement_radius(pack_gap)
+    side = _pack_square(pack_gap, pack_wall_clearance)
+    if side <= 2 * r_pack:
+        return False
+    return n_packs == 1 or n_packs * math.pi * r_pack**2 <= side**2 * _MAX_PACKING_DENSITY
+
+
+def max_counts(
+    pack_gap: float = PACK_GAP, pack_wall_clearance: float = PACK_WALL_CLEARANCE
+) -> tuple[int, int]:
     """The largest robot count (with no packs) and pack count (with one robot) that fit."""
     budget = _usable_area() * _MAX_PACKING_DENSITY
     r_robot = C.BODY_RADIUS + _PLACEMENT_MARGIN
-    r_pack = _pack_placement_radius()
+    r_pack = _pack_placement_radius(pack_gap)
     max_robots = int(budget / (math.pi * r_robot**2))
     max_packs = int((budget - math.pi * r_robot**2) / (math.pi * r_pack**2))
+    while max_packs > 0 and not _packs_fit(max_packs, pack_gap, pack_wall_clearance):
+        max_packs -= 1
     return max_robots, max_packs
 
 
-#: The most robots (with no packs) and packs (with one robot) that fit in the field.
+#: The most robots (with no packs) and packs (with one robot) that fit in the field, with the
+#: default pack gap.
 MAX_ROBOTS, MAX_PACKS = max_counts()
 
 
@@ -82,21 +115,42 @@ class WorldConfig:
             is the largest step, of those that divide the control step, whose trajectories
             stay within 2 cm of a 5x finer reference over 10 s of scripted driving
             (``benchmarks/timestep_study.py``: 1.90 cm; 1/110 s gives 2.39 cm).
+        pack_gap: smallest gap between the edges of two packs placed by :meth:`World.reset`,
+            m. The default 0.3 m is wider than a robot turning in place (0.28 m), so no robot
+            gets jammed between two packs; a larger gap spreads the packs out (docs/design.md
+            §9.18).
+        pack_wall_clearance: smallest gap between a pack's edge and a wall at
+            :meth:`World.reset`, m (half the pack gap if that is more). The default 0.2 m lets
+            a robot (18 cm wide) pass between a pack and a wall (docs/design.md §9.18).
 
-    The counts are bounded by what fits in the field (:data:`MAX_ROBOTS`, :data:`MAX_PACKS`,
-    and both together at the packing density the placement can still draw).
+    The counts are bounded by what fits in the field: :data:`MAX_ROBOTS` and :data:`MAX_PACKS`
+    (at the default pack gap and wall clearance), the packs alone in the square the wall
+    clearance leaves them, and robots and packs together, each at the packing density the
+    placement can still draw.
     """
 
-    n_robots: int = integer(4, 1, MAX_ROBOTS)
-    n_packs: int = integer(5, 0, MAX_PACKS)
-    timestep: float = number(1.0 / 120.0, 1e-4, 0.05)
+    n_robots: int = integer(4, 1, MAX_ROBOTS, unit="robots", source="paper §3.2")
+    n_packs: int = integer(5, 0, MAX_PACKS, unit="packs", source="paper §3.2")
+    timestep: float = number(1.0 / 120.0, 1e-4, 0.05, unit="s", source="docs/design.md §4")
+    pack_gap: float = number(PACK_GAP, 0.0, 1.5, unit="m", source="docs/design.md §9.18")
+    pack_wall_clearance: float = number(
+        PACK_WALL_CLEARANCE, 0.0, 0.8, unit="m", source="docs/design.md §9.18"
+    )
 
     def __post_init__(self) -> None:
         validate_fields(self)
-        if not _disc_area(self.n_robots, self.n_packs) <= _usable_area() * _MAX_PACKING_DENSITY:
+        if not _packs_fit(self.n_packs, self.pack_gap, self.pack_wall_clearance):
+            raise ValueError(
+                f"n_packs={self.n_packs} packs do not fit in the {C.FIELD_SIZE} m field with "
+                f"pack_gap={self.pack_gap} m and pack_wall_clearance="
+                f"{self.pack_wall_clearance} m; reduce one of them"
+            )
+        area = _disc_area(self.n_robots, self.n_packs, self.pack_gap)
+        if not area <= _usable_area() * _MAX_PACKING_DENSITY:
             raise ValueError(
                 f"n_robots={self.n_robots} and n_packs={self.n_packs} do not fit in the "
-                f"{C.FIELD_SIZE} m field together; reduce either"
+                f"{C.FIELD_SIZE} m field together with pack_gap={self.pack_gap} m; reduce "
+                "one of them"
             )
 
 
@@ -251,18 +305,19 @@ class World:
         """Zero the dynamics and place robots and packs at random, without overlap.
 
         Robots get uniformly random headings. Placement uses rejection sampling with clearance
-        ``BODY_RADIUS`` / ``PACK_RADIUS`` plus a margin, from walls and from each other.
+        ``BODY_RADIUS`` / ``PACK_RADIUS`` plus a margin, from walls and from each other; packs
+        keep ``pack_gap`` between them and ``pack_wall_clearance`` from the walls.
         """
         mujoco.mj_resetData(self.model, self.data)
-        n, k = self.config.n_robots, self.config.n_packs
+        cfg = self.config
+        n, k = cfg.n_robots, cfg.n_packs
         radii = np.concatenate(
             [
                 np.full(n, C.BODY_RADIUS + _PLACEMENT_MARGIN),
-                np.full(k, _pack_placement_radius()),
+                np.full(k, _pack_placement_radius(cfg.pack_gap)),
             ]
         )
-        # The packs' placement discs already include half the pack gap.
-        pack_wall = max(0.0, C.PACK_RADIUS + PACK_WALL_CLEARANCE - _pack_placement_radius())
+        pack_wall = _pack_wall_margin(cfg.pack_gap, cfg.pack_wall_clearance)
         wall_margin = np.concatenate([np.zeros(n), np.full(k, pack_wall)])
         centres = place_discs(radii, C.FIELD_SIZE / 2, rng, wall_margin)
         yaw = rng.uniform(-math.pi, math.pi, size=n)
@@ -395,6 +450,6 @@ def place_discs(
         else:
             raise ValueError(
                 f"could not place {len(radii)} bodies without overlap in the field; "
-                "reduce n_robots or n_packs"
+                "reduce n_robots, n_packs, pack_gap or pack_wall_clearance"
             )
     return centres

@@ -267,7 +267,8 @@ class TimeSharingScheduler:
         Args:
             energy: (n,) float, each active agent's energy after the step.
             died: (n,) bool, the energy reached 0 this step.
-            captured: (n,) bool, the robot docked onto a battery pack this step.
+            captured: (n,) bool, the robot's active agent captured a battery this step
+                (``StepEvents.captured``: by default, it docked onto a pack).
             mated_with: (n,) int, the robot whose active agent this robot's active agent mated
                 with this step, or :data:`NO_PARTNER`; must be symmetric.
 

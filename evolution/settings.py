@@ -501,7 +501,9 @@ def _toml_value(value: Any) -> str:
 
 
 def _comment(setting: Setting, width: int = 96) -> list[str]:
-    lines = textwrap.wrap(setting.meaning, width - 2) if setting.meaning else []
+    """The comment above a setting: its meaning (docstring markup removed), then its facts."""
+    meaning = re.sub(r":[a-z]+:`~?([^`]*)`", r"\1", setting.meaning).replace("``", "`")
+    lines = textwrap.wrap(meaning, width - 2) if meaning else []
     facts = [setting.allowed or _describe(setting)]
     if setting.unit:
         facts.append(f"unit: {setting.unit}")

@@ -150,6 +150,11 @@ def test_place_discs_hand_case() -> None:
         ({"n_packs": 100_000}, "n_packs"),
         ({"timestep": 0.0}, "timestep"),
         ({"timestep": float("nan")}, "timestep"),
+        ({"pack_gap": -0.1}, "pack_gap"),
+        ({"pack_gap": 1.6}, "pack_gap"),
+        ({"pack_gap": float("nan")}, "pack_gap"),
+        ({"pack_wall_clearance": -0.1}, "pack_wall_clearance"),
+        ({"pack_wall_clearance": 0.9}, "pack_wall_clearance"),
     ],
 )
 def test_bad_world_config_names_the_field(kwargs: dict, field: str) -> None:
@@ -198,3 +203,77 @@ def test_packs_leave_room_to_turn_between_them() -> None:
             for j in range(i + 1, len(p))
         ]
         assert min(gaps) >= PACK_GAP - 1e-9
+
+
+def test_pack_gap_and_wall_clearance_default_to_the_constants() -> None:
+    from cyber_rodent.world import PACK_GAP, PACK_WALL_CLEARANCE
+
+    cfg = WorldConfig()
+    assert (cfg.pack_gap, cfg.pack_wall_clearance) == (PACK_GAP, PACK_WALL_CLEARANCE) == (0.3, 0.2)
+    # The same seed places the same world with the defaults spelled out.
+    a = World(WorldConfig(), np.random.default_rng(4))
+    b = World(WorldConfig(pack_gap=0.3, pack_wall_clearance=0.2), np.random.default_rng(4))
+    np.testing.assert_array_equal(a.pack_positions(), b.pack_positions())
+    np.testing.assert_array_equal(a.data.qpos, b.data.qpos)
+
+
+def pack_gaps(world: World) -> list[float]:
+    """Edge-to-edge gap of every pair of packs."""
+    p = world.pack_positions()
+    return [
+        float(np.hypot(*(p[i] - p[j]))) - 2 * C.PACK_RADIUS
+        for i in range(len(p))
+        for j in range(i + 1, len(p))
+    ]
+
+
+@pytest.mark.parametrize(("gap", "n_packs"), [(0.9, 2), (0.6, 4)])
+def test_a_larger_pack_gap_spreads_the_packs(gap: float, n_packs: int) -> None:
+    # Every pair of pack centres is at least 2 x PACK_RADIUS + gap apart, over many draws;
+    # with the default gap the same draws bring some pair closer than that.
+    wide = World(WorldConfig(n_packs=n_packs, pack_gap=gap), np.random.default_rng(0))
+    narrow = World(WorldConfig(n_packs=n_packs), np.random.default_rng(0))
+    closest_wide, closest_narrow = math.inf, math.inf
+    for seed in range(30):
+        wide.reset(np.random.default_rng(seed))
+        narrow.reset(np.random.default_rng(seed))
+        closest_wide = min(closest_wide, *pack_gaps(wide))
+        closest_narrow = min(closest_narrow, *pack_gaps(narrow))
+    assert closest_wide >= gap - 1e-9
+    assert closest_narrow < gap
+
+
+def test_pack_wall_clearance_keeps_the_packs_off_the_walls() -> None:
+    # Pack edges at least 0.6 m from every wall: centres within ±(1.15 - 0.045 - 0.6) m.
+    w = World(WorldConfig(n_packs=3, pack_wall_clearance=0.6), np.random.default_rng(0))
+    limit = C.FIELD_SIZE / 2 - C.PACK_RADIUS - 0.6
+    for seed in range(30):
+        w.reset(np.random.default_rng(seed))
+        assert np.abs(w.pack_positions()).max() <= limit + 1e-9
+    assert min(pack_gaps(w)) >= 0.3 - 1e-9  # the default pack gap still holds
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        # 5 discs of radius 0.045 + 0.45 m cover 3.85 m², more than 40 % of the 5.29 m² field.
+        ({"pack_gap": 0.9}, "pack_gap=0.9"),
+        # Even alone with one robot, 3 such packs cover 2.31 m² > 2.12 m².
+        ({"pack_gap": 0.9, "n_packs": 3, "n_robots": 1}, "pack_gap=0.9"),
+        # 2 packs fit, but not with 4 robots: 1.54 + 0.32 m² fit, 1.54 + 8 x 0.08 m² do not.
+        ({"pack_gap": 0.9, "n_packs": 2, "n_robots": 8}, "do not fit.*pack_gap=0.9"),
+        # A 0.8 m clearance leaves the packs a 1.0 m square: 5 discs of 0.195 m cover 0.60 m²,
+        # more than 40 % of 1.0 m².
+        ({"pack_wall_clearance": 0.8}, "pack_wall_clearance=0.8"),
+    ],
+)
+def test_a_pack_layout_that_cannot_be_placed_is_refused(kwargs: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match) as error:
+        WorldConfig(**kwargs)
+    assert "\n" not in str(error.value)
+
+
+def test_max_counts_follow_the_pack_gap() -> None:
+    assert max_counts(0.9)[1] == 2  # (2.116 - 0.080) m² / 0.770 m² per pack
+    assert max_counts(0.9)[0] == max_counts()[0]  # robots do not depend on it
+    WorldConfig(n_robots=1, n_packs=2, pack_gap=0.9)  # the largest count fits

@@ -10,6 +10,7 @@ from cyber_rodent.validation import (
     boolean,
     check_integer,
     check_number,
+    choice,
     integer,
     number,
     validate_fields,
@@ -17,6 +18,9 @@ from cyber_rodent.validation import (
 
 #: Upper bound of the energy fields: large enough for any experiment, small enough to be finite.
 _ENERGY_LIMIT = 1e9
+#: The values of ``SurvivalConfig.capture_rule``: a capture is the docking itself, or the
+#: docking's first recharge step.
+CAPTURE_RULES = ("docking", "recharge")
 
 
 @dataclass(frozen=True)
@@ -48,22 +52,49 @@ class SurvivalConfig:
             §5: 0.35).
         mate_consecutive_steps: control steps the mating condition must hold (docs/design.md
             §5: 1).
+        capture_rule: when a docking counts as a captured battery (``StepEvents.captured``):
+            "docking" on the step the teeth dock onto the pack; "recharge" only on the
+            docking's first recharge step, so a docking whose recharge the controller stops
+            at once is no capture. The paper counts captured batteries but leaves open whether
+            a docking without a recharge counts (docs/design.md §9.5).
     """
 
-    initial_energy: float = number(100.0, 0.0, _ENERGY_LIMIT, low_open=True)
-    max_energy: float = number(200.0, 0.0, _ENERGY_LIMIT, low_open=True)
-    energy_decay: float = number(1.0, 0.0, _ENERGY_LIMIT)
-    recharge_rate: float = number(5.0, 0.0, _ENERGY_LIMIT)
-    decay_while_recharging: bool = boolean(False)
-    max_recharge_steps: int = integer(40, 1, 1_000_000)
-    control_dt: float = number(0.1, 0.0, 10.0, low_open=True)
-    reflex_min_steps: int = integer(4, 0, 1000)
-    reflex_max_steps: int = integer(8, 0, 1000)
-    reflex_wheel_speed: float = number(0.3, 0.0, C.TOP_SPEED, low_open=True)
-    dock_bearing_tolerance_deg: float = number(15.0, 0.0, 90.0, low_open=True)
-    mate_angle_deg: float = number(15.0, 0.0, 90.0, low_open=True)
-    mate_distance: float = number(0.35, 0.0, C.FIELD_SIZE * math.sqrt(2), low_open=True)
-    mate_consecutive_steps: int = integer(1, 1, 1_000_000)
+    initial_energy: float = number(
+        100.0, 0.0, _ENERGY_LIMIT, low_open=True, source="paper Table 1"
+    )
+    max_energy: float = number(200.0, 0.0, _ENERGY_LIMIT, low_open=True, source="paper Table 1")
+    energy_decay: float = number(
+        1.0, 0.0, _ENERGY_LIMIT, unit="per control step", source="paper Table 1"
+    )
+    recharge_rate: float = number(
+        5.0, 0.0, _ENERGY_LIMIT, unit="per recharge step", source="paper Table 1"
+    )
+    decay_while_recharging: bool = boolean(False, source="docs/design.md §9.2")
+    max_recharge_steps: int = integer(
+        40, 1, 1_000_000, unit="control steps", source="paper Table 1"
+    )
+    control_dt: float = number(
+        0.1, 0.0, 10.0, low_open=True, unit="s", source="docs/design.md §9.1"
+    )
+    reflex_min_steps: int = integer(4, 0, 1000, unit="control steps", source="docs/design.md §9.6")
+    reflex_max_steps: int = integer(8, 0, 1000, unit="control steps", source="docs/design.md §9.6")
+    reflex_wheel_speed: float = number(
+        0.3, 0.0, C.TOP_SPEED, low_open=True, unit="m/s", source="docs/design.md §9.6"
+    )
+    dock_bearing_tolerance_deg: float = number(
+        15.0, 0.0, 90.0, low_open=True, unit="deg", source="docs/design.md §9.4"
+    )
+    mate_angle_deg: float = number(
+        15.0, 0.0, 90.0, low_open=True, unit="deg", source="docs/design.md §9.7"
+    )
+    mate_distance: float = number(
+        0.35, 0.0, C.FIELD_SIZE * math.sqrt(2), low_open=True, unit="m",
+        source="docs/design.md §9.7",
+    )  # fmt: skip
+    mate_consecutive_steps: int = integer(
+        1, 1, 1_000_000, unit="control steps", source="docs/design.md §9.7"
+    )
+    capture_rule: str = choice("docking", CAPTURE_RULES, source="docs/design.md §9.5")
 
     def __post_init__(self) -> None:
         validate_fields(self)

@@ -24,8 +24,11 @@ class StepEvents:
     vast majority of steps, which lets a hot loop skip event handling with one test.
 
     Attributes:
-        docked: (n,) bool, the robot captured a pack this step (it recharges from the next).
-        dock_pack: (n,) int, index of the captured pack, -1 where ``docked`` is False.
+        docked: (n,) bool, the robot docked onto a pack this step (it recharges from the next).
+        dock_pack: (n,) int, index of the pack docked onto, -1 where ``docked`` is False.
+        captured: (n,) bool, the robot's active agent captured a battery this step, by
+            ``SurvivalConfig.capture_rule``: ``docked`` ("docking"), or the docking's first
+            recharge step ("recharge").
         recharge_ended: (n,) bool, the robot's recharge ended this step.
         recharge_end_reason: (n,) int, a :class:`RechargeEnd` value (``NONE`` elsewhere).
         died: (n,) bool, the robot's energy reached 0 this step.
@@ -36,6 +39,7 @@ class StepEvents:
     __slots__ = (
         "docked",
         "dock_pack",
+        "captured",
         "recharge_ended",
         "recharge_end_reason",
         "died",
@@ -48,6 +52,7 @@ class StepEvents:
     def __init__(self, n_robots: int):
         self.docked = np.zeros(n_robots, dtype=bool)
         self.dock_pack = np.full(n_robots, -1, dtype=np.int64)
+        self.captured = np.zeros(n_robots, dtype=bool)
         self.recharge_ended = np.zeros(n_robots, dtype=bool)
         self.recharge_end_reason = np.zeros(n_robots, dtype=np.int64)
         self.died = np.zeros(n_robots, dtype=bool)
@@ -58,6 +63,7 @@ class StepEvents:
         if self.any:
             self.docked[:] = False
             self.dock_pack[:] = -1
+            self.captured[:] = False
             self.recharge_ended[:] = False
             self.recharge_end_reason[:] = RechargeEnd.NONE
             self.died[:] = False

@@ -132,6 +132,8 @@ class SurvivalWorld:
         self.alive = np.ones(n, dtype=bool)
         self.step_count = 0
         self.events = StepEvents(n)
+        #: ``capture_rule`` "recharge": a capture is a docking's first recharge step.
+        self._capture_on_recharge = cfg.capture_rule == "recharge"
         self._state = SurvivalState(
             self.energy, self.recharge_steps, self.docked, self.alive, self.reflex_steps_left,
             self.reflex_wheels,
@@ -374,6 +376,8 @@ class SurvivalWorld:
         self._mid_step = False
         events = self.events
         n_stops, n_died = self._end()
+        if self._capture_on_recharge:
+            self._capture_first_recharge()
         if n_stops:
             reasons = self._outcome.stop_reason
             for i in np.flatnonzero(reasons).tolist():
@@ -384,9 +388,21 @@ class SurvivalWorld:
             events.any = True
         if self.n_packs and self.world.data.ncon:
             self.docking.detect()
+            if events.any and not self._capture_on_recharge:
+                np.copyto(events.captured, events.docked)  # "docking": the docking is the capture
         self.mating.after_step(events)
         self.step_count += 1
         return events
+
+    def _capture_first_recharge(self) -> None:
+        """``capture_rule`` "recharge": mark the robots whose recharge step just taken is
+        their docking's first (before a stopping rule's release zeroes the counter)."""
+        events = self.events
+        captured = events.captured
+        np.equal(self.recharge_steps, 1, out=captured)
+        np.logical_and(captured, self._flags.recharging, out=captured)
+        if captured.any():
+            events.any = True
 
     def _release(self, robot: int, reflex: bool) -> None:
         self.docking.release(robot, self.rng if reflex else None)
@@ -458,13 +474,16 @@ class SurvivalWorld:
     def load_state(self, state: Mapping[str, Any]) -> None:
         """Write a :meth:`state` back, arrays in place (other objects hold views of them).
 
-        Nothing is written unless all of ``state`` fits this world.
+        Nothing is written unless all of ``state`` fits this world. A state written before
+        ``StepEvents.captured`` existed, when every docking was a capture, gets ``captured``
+        equal to its ``docked``.
 
         Raises:
             ValueError: a key is missing or unknown, an array's shape or dtype differs, a
                 scalar has the wrong type, or the generator state is of another generator.
         """
         template = self.state()
+        state = _with_captured(state)
         _check_state(state, template, "")
         probe = type(self.rng.bit_generator)(0)
         try:
@@ -487,6 +506,17 @@ class SurvivalWorld:
         self.mating.streak_active = bool(state["mate_streak_active"])
         self._mid_step = bool(state["mid_step"])
         self.rng.bit_generator.state = copy.deepcopy(state["rng"])
+
+
+def _with_captured(state: Any) -> Any:
+    """``state`` with ``events['captured']`` (= ``events['docked']``) if it predates it."""
+    events = state.get("events") if isinstance(state, Mapping) else None
+    if not isinstance(events, Mapping) or "captured" in events:
+        return state
+    docked = events.get("docked")
+    if not isinstance(docked, np.ndarray):
+        return state  # _check_state names what is wrong
+    return {**state, "events": {**events, "captured": docked.copy()}}
 
 
 def _check_state(state: Any, template: Mapping[str, Any], where: str) -> None:

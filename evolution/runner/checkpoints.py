@@ -99,6 +99,16 @@ def genomes_identity(genomes: Sequence[Genome] | None) -> str | None:
     return digest.hexdigest()
 
 
+#: Config fields added after checkpoints were first written, with the default that reproduces
+#: the behaviour before them: at that default they are left out of the fingerprint, so older
+#: checkpoints still resume.
+LATER_FIELDS: tuple[tuple[str, str, object], ...] = (
+    ("survival", "capture_rule", "docking"),
+    ("world", "pack_gap", 0.3),
+    ("world", "pack_wall_clearance", 0.2),
+)
+
+
 def run_fingerprint(
     config: RunConfig, seed: int, policies_id: str, genomes_id: str | None = None
 ) -> str:
@@ -107,6 +117,9 @@ def run_fingerprint(
     run = dataclasses.asdict(config)
     if run.get("profile", 0) is None:
         del run["profile"]  # runs without a profile keep the fingerprints they always had
+    for section, name, default in LATER_FIELDS:
+        if run[section].get(name) == default:
+            del run[section][name]  # likewise runs that leave a later field at its default
     fields: dict[str, Any] = {
         "run": run,
         "seed": seed,

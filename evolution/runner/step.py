@@ -245,7 +245,7 @@ class EvolutionRunner:
             self._log_world_events(events)
         # schedule: ageing, time sharing, matings, deaths, offspring
         switched = self.scheduler.on_step(
-            self.survival.energy, events.died, events.docked, events.mate_partner
+            self.survival.energy, events.died, events.captured, events.mate_partner
         )
         if not np.count_nonzero(switched):
             return False
