@@ -336,8 +336,10 @@ def plot_run_dir(path: str | os.PathLike[str]) -> list[Path]:
 
 
 def _plot_methods(root: Path) -> list[Path]:
-    """Fig. 6 and its summary for the runs of one directory (a run, a sweep or a cell)."""
-    from evolution.figures import plot_fig6, summarise_runs
+    """Fig. 6, its summary, the EE vs CE statistics (:mod:`evolution.comparison`) and the
+    completed agents per generation for the runs of one directory (a run, a sweep or a cell)."""
+    from evolution.comparison import write_report
+    from evolution.figures import plot_completions, plot_fig6, summarise_runs
     from evolution.sweep import load_sweep
 
     runs = load_sweep(root)
@@ -352,6 +354,8 @@ def _plot_methods(root: Path) -> list[Path]:
         with atomic_output(summary) as temp:
             summarise_runs(chosen).to_csv(temp, index=False, float_format="%.4g")
         written.append(summary)
+        written += write_report(chosen, root / FIGURES_DIR)
+        written += plot_completions(chosen, root / FIGURES_DIR / "completions")
     return written
 
 

@@ -263,3 +263,52 @@ def plot_per_robot(
     paths = save_figure(fig, Path(out_base))
     plt.close(fig)
     return paths
+
+
+def plot_completions(
+    runs: Mapping[str, Sequence[pd.DataFrame]], out_base: str | Path
+) -> list[Path]:
+    """Agents that completed the survival task per generation: mean over runs ± std band.
+
+    Fig. 6 averages over these agents only, so their number says how much each of its points
+    rests on; the dashed line is the full lifetimes they are a share of. Statistics as in
+    :func:`evolution.comparison.completions` (standard deviation over runs with ``ddof=1``).
+
+    Args:
+        runs: statistics tables by method, e.g. ``{"ee": [...], "ce": [...]}``.
+        out_base: output path without extension; ``.png`` and ``.pdf`` are written.
+
+    Returns:
+        The written file paths.
+    """
+    from evolution.comparison import completions
+
+    order = [m for m in METHOD_STYLE if m in runs] + [m for m in runs if m not in METHOD_STYLE]
+    per_method = {m: completions(runs[m]) for m in order}
+    per_method = {m: c for m, c in per_method.items() if len(c)}
+    if not per_method:
+        raise ValueError("plot_completions needs at least one run with a closed generation")
+    plt = styled_pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 4.0))
+    for method, table in per_method.items():
+        label, colour = METHOD_STYLE.get(method, (method.upper(), None))
+        gen = table["generation"].to_numpy()
+        mean = table["completed_mean"].to_numpy(dtype=float)
+        std = np.nan_to_num(table["completed_std"].to_numpy(dtype=float))  # one run: no band
+        n = int(table["runs"].max())
+        (line,) = ax.plot(gen, mean, color=colour, lw=2.0, label=f"{label}, {n} runs")
+        ax.fill_between(gen, mean - std, mean + std, color=line.get_color(), alpha=0.15, lw=0)
+        ax.plot(gen, table["full_lifetimes_mean"], color=line.get_color(), lw=1.0, ls="--")
+    ax.set_xlabel("Generation")
+    ax.set_ylabel("Agents per generation")
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend(frameon=False)
+    ax.set_title(
+        "Completed the survival task (solid, ± std over runs) of full lifetimes (dashed)",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    paths = save_figure(fig, Path(out_base))
+    plt.close(fig)
+    return paths

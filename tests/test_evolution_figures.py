@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import imageio.v3 as iio
 import numpy as np
 import pandas as pd
@@ -9,6 +11,7 @@ import pytest
 
 from evolution.figures import (
     aggregate_runs,
+    plot_completions,
     plot_fig6,
     plot_per_robot,
     pool_per_robot,
@@ -104,3 +107,24 @@ def test_pool_per_robot_hand_computed() -> None:
     assert pooled.loc[(1, 0)].tolist() == [6.0, 0.0, 1]  # only run a reached generation 1
     with pytest.raises(ValueError, match="at least one"):
         pool_per_robot([])
+
+
+def test_plot_completions(tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+
+    def completed_run(n: int) -> pd.DataFrame:
+        completed = rng.integers(5, 40, n)
+        return pd.DataFrame(
+            {"generation": np.arange(n), "completed": completed, "full_lifetimes": completed + 20}
+        )
+
+    runs = {"ee": [completed_run(8) for _ in range(3)], "ce": [completed_run(6)]}
+    paths = plot_completions(runs, tmp_path / "completions")
+    assert [p.suffix for p in paths] == [".png", ".pdf"]
+    image = iio.imread(paths[0])
+    assert image.ndim == 3 and image.shape[0] > 200 and image.std() > 10
+    assert paths[1].read_bytes().startswith(b"%PDF")
+    # One method, one run of two generations (no std band): still drawn.
+    assert plot_completions({"ee": [completed_run(2)]}, tmp_path / "short")[0].exists()
+    with pytest.raises(ValueError, match="at least one run"):
+        plot_completions({"ee": []}, tmp_path / "none")

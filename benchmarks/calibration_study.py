@@ -1,0 +1,211 @@
+"""The calibration study of the paper's unknowns: run it, then tabulate and draw it.
+
+The paper fixes Tables 1 and 2 but leaves open the quantities that set how often a robot can
+capture a battery or mate: the control step's length, the post-recharge reflex, the IR
+exchange's duration, the mating geometry, the pack layout, what counts as a capture, and
+whether energy decays while docked. Each study below is one ``cyber-rodent sweep`` over a grid
+of one setting (the default value is the ``baseline`` sweep, run once), for EE and CE, on the
+calibration seeds 100 and up: a choice is never tuned on a seed the results then report
+(seeds 0-19).
+
+Each run contributes its mean over its last ``--window`` generations; the table gives, per
+study, value and method, the mean and standard deviation over seeds (:mod:`evolution.grid`).
+
+    .venv/bin/python -m benchmarks.calibration_study --run      # the sweeps (hours; resumable)
+    .venv/bin/python -m benchmarks.calibration_study            # table and figure from them
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import subprocess
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from evolution.grid import compare_cells, load_cells, read_grid
+from evolution.settings import settings
+from evolution.sweep import load_sweep
+
+#: The paper's headline numbers per 400-step life (Fig. 6): EE at generation 120, CE after
+#: it converged.
+PAPER = {"ee": {"batteries": 22.0, "matings": 3.5}, "ce": {"batteries": 25.0, "matings": 2.0}}
+#: Seeds used to calibrate (never reported as results) and the generations of each run.
+SEEDS = "100-101"
+GENERATIONS = 30
+
+
+@dataclass(frozen=True)
+class Study:
+    """One unknown: a sweep over a grid of one setting (or the defaults for the baseline)."""
+
+    name: str
+    title: str
+    grid: tuple[str, ...] = ()
+    methods: str = "ee,ce"
+
+
+STUDIES = (
+    Study("baseline", "the defaults"),
+    Study("ir_exchange", "IR exchange duration", ("survival.mate_consecutive_steps=2,3",)),
+    Study("reflex_length", "reflex length (max steps)", ("survival.reflex_max_steps=4,12",)),
+    Study("control_step", "control step length", ("survival.control_dt=0.15,0.2",)),
+    Study("mate_distance", "mating distance", ("survival.mate_distance=0.25,0.5",)),
+    Study("mate_angle", "mating angle", ("survival.mate_angle_deg=10,25",)),
+    Study("reflex_speed", "reflex speed", ("survival.reflex_wheel_speed=0.15,0.6",)),
+    Study("decay_docked", "decay while docked", ("survival.decay_while_recharging=true",)),
+    Study("capture_rule", "what counts as a capture", ("survival.capture_rule=recharge",)),
+    Study("pack_gap", "pack spacing", ("world.pack_gap=0.6,0.9",)),
+    Study("ce_tournament", "CE tournament size", ("genetic.tournament_size=4,8",), "ce"),
+    Study(
+        "ce_dead_fitness",
+        "CE fitness of agents that died",
+        ("evolution.ce_fitness_requires_survival=false",),
+        "ce",
+    ),
+)
+
+
+def sweep_command(study: Study, out: Path) -> list[str]:
+    """The ``cyber-rodent sweep`` command line of one study."""
+    command = [
+        "cyber-rodent", "sweep", "--methods", study.methods, "--seeds", SEEDS,
+        "--generations", str(GENERATIONS), "--workers", "2", "--out", str(out / study.name),
+    ]  # fmt: skip
+    for axis in study.grid:
+        command += ["--grid", axis]
+    return command
+
+
+def run_studies(studies: Sequence[Study], out: Path) -> None:
+    """Run (or resume) every study's sweep, one after the other."""
+    for study in studies:
+        command = sweep_command(study, out)
+        if (out / study.name / "sweep.json").exists():
+            command.append("--resume")
+        print(" ".join(command), flush=True)
+        executable = [sys.executable, "-m", "cyber_rodent.cli", *command[1:]]
+        subprocess.run([*executable, "--no-progress"], check=True)
+
+
+def collect(out: Path, window: int) -> pd.DataFrame:
+    """One row per study, value and method (the baseline's row under every study's key)."""
+    defaults = settings()
+    frames = []
+    for study in STUDIES:
+        root = out / study.name
+        if not root.is_dir():
+            continue
+        if read_grid(root) is None:
+            loaded = {"defaults": ({}, load_sweep(root))}
+        else:
+            loaded = load_cells(root)
+        table = compare_cells(loaded, window)
+        if table.empty:
+            continue
+        table.insert(0, "study", study.name)
+        frames.append(table)
+    if not frames:
+        raise SystemExit(f"no finished calibration sweeps under {out}")
+    rows = pd.concat(frames, ignore_index=True)
+    keys = [c for c in rows.columns if "." in c]
+    rows["key"] = rows[keys].notna().idxmax(axis=1).where(rows[keys].notna().any(axis=1))
+    rows["value"] = [
+        row[row["key"]] if isinstance(row["key"], str) else math.nan for _, row in rows.iterrows()
+    ]
+    rows = rows.drop(columns=[*keys, "cell"])
+    baseline = rows[rows["study"] == "baseline"]
+    expanded = [rows[rows["study"] != "baseline"]]
+    for study in STUDIES[1:]:  # the defaults are every study's reference value
+        if not study.grid or not (rows["study"] == study.name).any():
+            continue
+        key = study.grid[0].partition("=")[0]
+        base = baseline[baseline["method"].isin(study.methods.split(","))].copy()
+        base["study"], base["key"], base["value"] = study.name, key, defaults[key].default
+        expanded.append(base)
+    table = pd.concat(expanded, ignore_index=True)
+    table["default"] = [defaults[k].default == v for k, v in zip(table["key"], table["value"],
+                                                                  strict=True)]  # fmt: skip
+    order = {s.name: i for i, s in enumerate(STUDIES)}
+    table["_order"] = table["study"].map(order)
+    table["_value"] = table["value"].map(lambda v: float(v) if not isinstance(v, str) else 0.0)
+    table = table.sort_values(["_order", "_value", "method"]).drop(columns=["_order", "_value"])
+    columns = ["study", "key", "value", "default", "method", "runs", "generations"]
+    return table[columns + [c for c in table.columns if c not in columns]]
+
+
+def plot(table: pd.DataFrame, out_base: Path) -> list[Path]:
+    """One column per study: batteries, matings and completed agents against the value."""
+    from evolution.figures import METHOD_STYLE, save_figure, styled_pyplot
+
+    plt = styled_pyplot()
+    studies = [s for s in STUDIES[1:] if (table["study"] == s.name).any()]
+    rows = [("batteries", "batteries per life"), ("matings", "matings per life"),
+            ("completed", "agents completing")]  # fmt: skip
+    fig, axes = plt.subplots(
+        len(rows), len(studies), figsize=(2.3 * len(studies) + 1, 7.5), squeeze=False,
+        sharey="row",
+    )  # fmt: skip
+    for col, study in enumerate(studies):
+        part = table[table["study"] == study.name]
+        values = list(dict.fromkeys(part["value"]))
+        x = np.arange(len(values))
+        for r, (column, label) in enumerate(rows):
+            ax = axes[r][col]
+            for offset, method in ((-0.1, "ee"), (0.1, "ce")):
+                m = part[part["method"] == method].set_index("value").reindex(values)
+                if m[column].isna().all():
+                    continue
+                colour = METHOD_STYLE[method][1]
+                ax.errorbar(x + offset, m[column], yerr=m[f"{column}_std"], fmt="o",
+                            color=colour, capsize=3, label=method.upper())  # fmt: skip
+                if column in ("batteries", "matings"):
+                    ax.axhline(PAPER[method][column], color=colour, ls=":", lw=1)
+            defaults = part.drop_duplicates("value").set_index("value").reindex(values)["default"]
+            labels = [f"{v}*" if d else f"{v}" for v, d in zip(values, defaults, strict=True)]
+            ax.set_xticks(x, labels, fontsize=8)
+            ax.grid(axis="y", alpha=0.3)
+            if col == 0:
+                ax.set_ylabel(label)
+            if r == 0:
+                ax.set_title(study.title, fontsize=9)
+        axes[-1][col].set_xlabel(study.grid[0].partition("=")[0].partition(".")[2], fontsize=8)
+    axes[0][0].legend(frameon=False, fontsize=8)
+    window = table["generations"].iloc[0]
+    fig.suptitle(
+        f"Calibration (seeds {SEEDS}, mean ± std over seeds of each run's mean over generations "
+        f"{window}; * today's default; dotted: the paper's EE and CE)",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    return save_figure(fig, out_base)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("runs/calibration"))
+    parser.add_argument("--run", action="store_true", help="run (or resume) the sweeps first")
+    parser.add_argument("--only", default=None, help="comma list of study names to run")
+    parser.add_argument("--window", type=int, default=10, help="final generations per run")
+    parser.add_argument("--table", type=Path, default=Path("results/calibration.csv"))
+    parser.add_argument("--figure", type=Path, default=Path("docs/images/calibration"))
+    args = parser.parse_args(argv)
+    if args.run:
+        chosen = args.only.split(",") if args.only else [s.name for s in STUDIES]
+        run_studies([s for s in STUDIES if s.name in chosen], args.out)
+    table = collect(args.out, args.window)
+    args.table.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(args.table, index=False, float_format="%.4g")
+    paths = plot(table, args.figure)
+    with pd.option_context("display.width", 200, "display.max_rows", 200):
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
+    print("wrote", args.table, *paths)
+
+
+if __name__ == "__main__":
+    main()
