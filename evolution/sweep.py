@@ -100,9 +100,14 @@ class SweepSpec:
 
     @property
     def runs(self) -> list[SweepRun]:
-        """Every (method, seed, cell) in a fixed order: cell by cell, method, then seed."""
+        """Every (method, seed, cell) in a fixed order: cell by cell, seed by seed, then method.
+
+        Workers take runs in this order, so a sweep stopped part-way (a session's end, a
+        cluster's time limit) has finished whole seeds of every method, which are comparable,
+        rather than every seed of one method and none of the other.
+        """
         return [
-            SweepRun(m, s, c.name) for c in self.cells for m in self.methods for s in self.seeds
+            SweepRun(m, s, c.name) for c in self.cells for s in self.seeds for m in self.methods
         ]
 
     def settings_of(self, cell: str) -> dict[str, Any]:
