@@ -265,3 +265,24 @@ def test_a_robot_mates_with_one_partner_per_step():
     ev = sw.step(np.zeros((3, 2)), np.zeros(3, bool), np.ones(3, bool), np.ones(3, bool))
     assert ev.matings() == [(0, 2)]
     assert ev.mate_partner.tolist() == [2, -1, 0]
+
+
+def test_mate_reflex_turns_both_partners_away_after_an_exchange():
+    cfg = SurvivalConfig(mate_reflex=True, reflex_min_steps=4, reflex_max_steps=8)
+    sw = SurvivalWorld(WorldConfig(n_robots=2, n_packs=0), cfg, np.random.default_rng(3))
+    along = math.sqrt(0.3**2 - 0.04**2) + 2 * PORT_FORWARD
+    sw.world.set_robot_pose(0, -along / 2, 0.0, 0.0)
+    sw.world.set_robot_pose(1, along / 2, 0.0, math.pi)
+    mujoco.mj_forward(sw.world.model, sw.world.data)
+    assert mate_steps(sw, (True, True), 1) == [(0, (0, 1))]
+    # Both start a reflex of 4..8 steps, each a spin in place at the reflex speed.
+    assert all(4 <= sw.reflex_steps_left[i] <= 8 for i in range(2))
+    for i in range(2):
+        left, right = sw.reflex_wheels[i]
+        assert left == -right and abs(left) == cfg.reflex_wheel_speed
+    # While they turn they cannot mate, though both still signal Mate.
+    turning = int(sw.reflex_steps_left.min())
+    assert mate_steps(sw, (True, True), turning) == []
+    # Without the rule the pair exchanges again on the very next step.
+    plain = facing_pair(0.3)
+    assert mate_steps(plain, (True, True), 2) == [(0, (0, 1)), (1, (0, 1))]

@@ -57,6 +57,11 @@ class SurvivalConfig:
             docking's first recharge step, so a docking whose recharge the controller stops
             at once is no capture. The paper counts captured batteries but leaves open whether
             a docking without a recharge counts (docs/design.md §9.5).
+        mate_reflex: after a successful IR exchange both robots perform the rotation reflex, as
+            after recharging. The paper turns a robot away from the pack it recharged from "to
+            prevent ... continuing to recharge from the same battery" and says nothing of what
+            follows a mating; without a reflex the next agents of two robots still nose to nose
+            can mate at once (docs/design.md §9.7).
     """
 
     initial_energy: float = number(
@@ -95,6 +100,7 @@ class SurvivalConfig:
         1, 1, 1_000_000, unit="control steps", source="docs/design.md §9.7"
     )
     capture_rule: str = choice("docking", CAPTURE_RULES, source="docs/design.md §9.5")
+    mate_reflex: bool = boolean(False, source="docs/design.md §9.7")
 
     def __post_init__(self) -> None:
         validate_fields(self)

@@ -184,16 +184,23 @@ class Docking:
         state.docked[i] = False
         self.dock_pack[i] = -1
         state.recharge_steps[i] = 0
+        if reflex_rng is not None:
+            self.start_reflex(i, reflex_rng)
+
+    def start_reflex(self, i: int, rng: np.random.Generator) -> None:
+        """Start robot ``i``'s rotation reflex: a random direction and length drawn from
+        ``rng``, during which the world ignores its wheel commands (no-op if the reflex is
+        switched off, ``reflex_max_steps = 0``)."""
         cfg = self.config
-        if reflex_rng is not None and cfg.reflex_max_steps > 0:
-            state.reflex_steps_left[i] = reflex_rng.integers(
-                cfg.reflex_min_steps, cfg.reflex_max_steps + 1
-            )
-            direction = 1.0 if reflex_rng.random() < 0.5 else -1.0  # +1 = counter-clockwise
-            state.reflex_wheels[i] = (
-                -direction * cfg.reflex_wheel_speed,
-                direction * cfg.reflex_wheel_speed,
-            )
+        if cfg.reflex_max_steps <= 0:
+            return
+        state = self.state
+        state.reflex_steps_left[i] = rng.integers(cfg.reflex_min_steps, cfg.reflex_max_steps + 1)
+        direction = 1.0 if rng.random() < 0.5 else -1.0  # +1 = counter-clockwise
+        state.reflex_wheels[i] = (
+            -direction * cfg.reflex_wheel_speed,
+            direction * cfg.reflex_wheel_speed,
+        )
 
 
 __all__ = ["Docking", "check_energy", "check_recharge_steps", "recharge_gain"]

@@ -134,6 +134,8 @@ class SurvivalWorld:
         self.events = StepEvents(n)
         #: ``capture_rule`` "recharge": a capture is a docking's first recharge step.
         self._capture_on_recharge = cfg.capture_rule == "recharge"
+        #: ``mate_reflex``: both partners of an IR exchange turn away with the reflex.
+        self._reflex_after_mating = cfg.mate_reflex
         self._state = SurvivalState(
             self.energy, self.recharge_steps, self.docked, self.alive, self.reflex_steps_left,
             self.reflex_wheels,
@@ -391,6 +393,9 @@ class SurvivalWorld:
             if events.any and not self._capture_on_recharge:
                 np.copyto(events.captured, events.docked)  # "docking": the docking is the capture
         self.mating.after_step(events)
+        if self._reflex_after_mating and events.any:
+            for i in np.flatnonzero(events.mate_partner >= 0).tolist():
+                self.docking.start_reflex(i, self.rng)
         self.step_count += 1
         return events
 

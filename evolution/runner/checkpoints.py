@@ -104,6 +104,7 @@ def genomes_identity(genomes: Sequence[Genome] | None) -> str | None:
 #: checkpoints still resume.
 LATER_FIELDS: tuple[tuple[str, str, object], ...] = (
     ("survival", "capture_rule", "docking"),
+    ("survival", "mate_reflex", False),
     ("world", "pack_gap", 0.3),
     ("world", "pack_wall_clearance", 0.2),
 )
