@@ -259,7 +259,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _cmd_plot(args: argparse.Namespace) -> int:
     from evolution import experiment
 
-    for path in experiment.plot_run_dir(args.dir):
+    for path in experiment.plot_run_dir(args.dir, args.out):
         print(f"wrote {path}")
     return 0
 
@@ -475,11 +475,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     plot = sub.add_parser(
         "plot",
-        help="draw Fig. 6 from a run or sweep directory",
-        description="Draw the figures (PNG + PDF) of a run directory or of "
-        "a sweep directory into <dir>/figures.",
+        help="Fig. 6 and the EE vs CE statistics of a run or sweep directory",
+        description="Draw Fig. 6 and the completed agents per generation (PNG + PDF), and "
+        "write the EE vs CE statistics (comparison.csv: Mann-Whitney U, effect size, CE "
+        "convergence, EE rise) of a run directory, a sweep directory or a directory of "
+        "published run tables into <dir>/figures (or --out); a grid sweep also gets the "
+        "comparison of its cells (cells.csv, cells.png).",
     )
     plot.add_argument("dir")
+    plot.add_argument(
+        "--out", default=None, help="directory for the figures and tables (default: DIR/figures)"
+    )
     plot.set_defaults(func=_cmd_plot)
 
     render = sub.add_parser(

@@ -309,11 +309,17 @@ def _dataclass_in(hint: Any) -> type | None:
 
 
 # --- figures and videos ------------------------------------------------------------------------
-def plot_run_dir(path: str | os.PathLike[str]) -> list[Path]:
+def plot_run_dir(
+    path: str | os.PathLike[str], out: str | os.PathLike[str] | None = None
+) -> list[Path]:
     """Draw the figures of a run directory or of a sweep directory into ``<path>/figures``.
 
     A sweep over a grid of settings gets each cell's figures in ``<cell>/figures`` and the
     comparison of its cells in ``figures/cells.{csv,png,pdf}`` (:mod:`evolution.grid`).
+
+    Args:
+        path: a run directory, a sweep directory, or a directory of published run tables.
+        out: where the figures and their tables go instead of ``<path>/figures``.
 
     Raises:
         ValueError: no statistics found under ``path``.
@@ -321,23 +327,25 @@ def plot_run_dir(path: str | os.PathLike[str]) -> list[Path]:
     from evolution.grid import cells, read_grid, write_cell_comparison
 
     root = Path(path)
+    target = Path(out) if out is not None else root / FIGURES_DIR
     grid = read_grid(root)
     if grid is None:
-        return _plot_methods(root)
+        return _plot_methods(root, target)
     written: list[Path] = []
     for cell in cells(grid):
         try:
-            written += _plot_methods(root / cell.name)
+            written += _plot_methods(root / cell.name, target / cell.name)
         except ValueError:
             continue  # a cell none of whose runs has finished a generation yet
     if not written:
         raise ValueError(f"no {STATISTICS_FILE} found in the cells of {root}")
-    return written + write_cell_comparison(root)
+    return written + write_cell_comparison(root, target)
 
 
-def _plot_methods(root: Path) -> list[Path]:
+def _plot_methods(root: Path, figures: Path) -> list[Path]:
     """Fig. 6, its summary, the EE vs CE statistics (:mod:`evolution.comparison`) and the
-    completed agents per generation for the runs of one directory (a run, a sweep or a cell)."""
+    completed agents per generation for the runs of one directory (a run, a sweep or a cell),
+    into ``figures``."""
     from evolution.comparison import write_report
     from evolution.figures import plot_completions, plot_fig6, summarise_runs
     from evolution.sweep import load_sweep
@@ -349,13 +357,13 @@ def _plot_methods(root: Path) -> list[Path]:
     non_empty = {m: [t for t in tables if len(t)] for m, tables in runs.items()}
     if any(non_empty.values()):
         chosen = {m: t for m, t in non_empty.items() if t}
-        written += plot_fig6(chosen, root / FIGURES_DIR / "fig6")
-        summary = root / FIGURES_DIR / "fig6_summary.csv"
+        written += plot_fig6(chosen, figures / "fig6")
+        summary = figures / "fig6_summary.csv"
         with atomic_output(summary) as temp:
             summarise_runs(chosen).to_csv(temp, index=False, float_format="%.4g")
         written.append(summary)
-        written += write_report(chosen, root / FIGURES_DIR)
-        written += plot_completions(chosen, root / FIGURES_DIR / "completions")
+        written += write_report(chosen, figures)
+        written += plot_completions(chosen, figures / "completions")
     return written
 
 

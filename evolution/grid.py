@@ -202,14 +202,17 @@ def plot_cells(table: pd.DataFrame, out_base: str | os.PathLike[str]) -> list[Pa
 
 
 def write_cell_comparison(
-    path: str | os.PathLike[str], window: int = DEFAULT_WINDOW
+    path: str | os.PathLike[str],
+    out: str | os.PathLike[str] | None = None,
+    window: int = DEFAULT_WINDOW,
 ) -> list[Path]:
-    """``figures/cells.csv`` and ``figures/cells.{png,pdf}`` for the grid sweep at ``path``."""
+    """``cells.csv`` and ``cells.{png,pdf}`` for the grid sweep at ``path``, into ``out``
+    (default ``<path>/figures``)."""
     root = Path(path)
     table = compare_cells(load_cells(root), window)
     if table.empty:
         return []
-    figures = root / "figures"
+    figures = Path(out) if out is not None else root / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     csv = figures / "cells.csv"
     with atomic_output(csv) as temp:
