@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from evolution.grid import compare_cells, load_cells, read_grid
+from evolution.grid import cells, compare_cells, load_cells, read_grid
 from evolution.settings import settings
 from evolution.sweep import load_sweep
 
@@ -94,6 +94,63 @@ def run_studies(studies: Sequence[Study], out: Path) -> None:
         subprocess.run([*executable, "--no-progress"], check=True)
 
 
+#: Two matings of one robot pair this close (control steps) are a chain: the next agents of two
+#: robots left nose to nose by an exchange mate at once.
+CHAIN_STEPS = 3
+
+
+def event_rates(run: Path, window: int) -> dict[str, float]:
+    """What sets a run's rates, from its event log, over its last ``window`` generations.
+
+    ``recharge_steps``: median recharge steps per docking (the steps between the docking and the
+    recharge's end, less the stopping step when the controller stopped it); ``zero_recharge``:
+    share of dockings with none; ``redock_gap``: median steps from a robot's undocking to its
+    next docking (the reflex, then the re-approach); ``chained_matings``: share of a pair's
+    matings within :data:`CHAIN_STEPS` steps of its previous one.
+    """
+    events = pd.read_csv(run / "events.csv")
+    last = int(events["generation"].max())
+    late = events[events["generation"] > last - window]
+    steps, gaps = [], []
+    for _, mine in late[late["kind"].isin(("dock", "recharge_end"))].groupby("robot"):
+        kinds, times, reasons = mine["kind"].tolist(), mine["step"].tolist(), mine["value"]
+        for k in range(1, len(kinds)):
+            if kinds[k - 1] == "dock" and kinds[k] == "recharge_end":
+                steps.append(times[k] - times[k - 1] - int(reasons.iloc[k] == 1))
+            if kinds[k - 1] == "recharge_end" and kinds[k] == "dock":
+                gaps.append(times[k] - times[k - 1])
+    matings = late[(late["kind"] == "mate") & (late["robot"] < late["value"])]
+    gap = matings.groupby(["robot", "value"])["step"].diff()
+    return {
+        "recharge_steps": float(np.median(steps)) if steps else math.nan,
+        "zero_recharge": float(np.mean(np.array(steps) == 0)) if steps else math.nan,
+        "redock_gap": float(np.median(gaps)) if gaps else math.nan,
+        "chained_matings": float((gap <= CHAIN_STEPS).mean()) if len(gap) else math.nan,
+    }
+
+
+def _cells_of(root: Path) -> list[str]:
+    grid = read_grid(root)
+    return ["defaults"] if grid is None else [c.name for c in cells(grid)]
+
+
+def _rates(out: Path, window: int) -> pd.DataFrame:
+    """:func:`event_rates` averaged over seeds, per study, cell and method."""
+    rows = []
+    for study in STUDIES:
+        root = out / study.name
+        if not root.is_dir():
+            continue
+        for name in _cells_of(root):
+            base = root if name == "defaults" else root / name
+            for run in sorted(base.glob("*-seed*")):
+                if (run / "events.csv").exists():
+                    method = run.name.partition("-")[0]
+                    rates = event_rates(run, window)
+                    rows.append({"study": study.name, "cell": name, "method": method, **rates})
+    return pd.DataFrame(rows).groupby(["study", "cell", "method"], as_index=False).mean()
+
+
 def collect(out: Path, window: int) -> pd.DataFrame:
     """One row per study, value and method (the baseline's row under every study's key)."""
     defaults = settings()
@@ -114,6 +171,7 @@ def collect(out: Path, window: int) -> pd.DataFrame:
     if not frames:
         raise SystemExit(f"no finished calibration sweeps under {out}")
     rows = pd.concat(frames, ignore_index=True)
+    rows = rows.merge(_rates(out, window), on=["study", "cell", "method"], how="left")
     keys = [c for c in rows.columns if "." in c]
     rows["key"] = rows[keys].notna().idxmax(axis=1).where(rows[keys].notna().any(axis=1))
     rows["value"] = [
