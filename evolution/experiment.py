@@ -103,7 +103,8 @@ def prepare_out_dir(out: str | os.PathLike[str], *, resume: bool, force: bool) -
     path = Path(out).expanduser()
     if path.exists() and not path.is_dir():
         raise ValueError(f"--out {path} is a file, not a directory")
-    non_empty = path.is_dir() and any(path.iterdir())
+    # A run killed before its first record leaves only versions.json: nothing to keep.
+    non_empty = path.is_dir() and any(p.name != VERSIONS_FILE for p in path.iterdir())
     is_run = holds_a_run(path)
     if resume:
         if not is_run:

@@ -122,7 +122,7 @@ def summarise_runs(
             }
             for column in ("batteries_mean", "matings_mean", "completed"):
                 per_run = [
-                    float(np.nanmean(t.loc[t["generation"].between(first, last), column]))
+                    _mean_or_nan(t.loc[t["generation"].between(first, last), column])
                     for t in tables
                     if column in t.columns
                 ]
@@ -130,6 +130,12 @@ def summarise_runs(
                 row[f"{column}_std"] = float(np.std(per_run)) if per_run else math.nan
             rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _mean_or_nan(values: pd.Series) -> float:
+    """The mean of the non-NaN values; NaN (without numpy's warning) when there are none."""
+    finite = values.dropna()
+    return float(finite.mean()) if len(finite) else math.nan
 
 
 def save_figure(fig: Figure, out_base: Path) -> list[Path]:

@@ -269,3 +269,15 @@ def test_grid_sweep_runs_every_cell_and_compares_them(tmp_path: Path) -> None:
     other = ["--grid", "survival.mate_consecutive_steps=1,3"]
     r = cli(*args, *other, "--out", str(out), "--resume", "--no-progress", *tiny_args())
     assert r.returncode == 2 and "another grid" in r.stderr
+
+
+def test_a_run_killed_before_its_first_record_can_start_again(tmp_path: Path) -> None:
+    from evolution.experiment import VERSIONS_FILE, prepare_out_dir
+
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / VERSIONS_FILE).write_text("{}")  # all that a run killed at once leaves
+    assert prepare_out_dir(out, resume=False, force=False) == out
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(ValueError, match="exists and is not empty"):
+        prepare_out_dir(out, resume=False, force=False)
