@@ -3,10 +3,11 @@
 The paper trains the basic behaviours "in the same environmental setting used for the
 evolutionary experiments" (§3.4). An episode here runs on the evolution runner's own lean path:
 a :class:`~cyber_rodent.survival.SurvivalWorld` (MuJoCo physics, docking by teeth/electrode
-contact, IR mating) and the geometric vision provider, stepped one 0.1 s control step at a time
-with the discrete wheel commands. The dm-control tasks of :mod:`cyber_rodent.tasks` wrap the same
-objects with the same start conditions; we drive the world directly because training needs
-hundreds of thousands of steps and the episode loop is then the only overhead.
+contact, IR mating) and the geometric vision provider, stepped one control step
+(``SurvivalConfig.control_dt``, 0.1 s by default) at a time with the discrete wheel commands. The
+dm-control tasks of :mod:`cyber_rodent.tasks` wrap the same objects with the same start
+conditions; we drive the world directly because training needs hundreds of thousands of steps and
+the episode loop is then the only overhead.
 
 Episode settings (the same as the dm-control tasks ``forage``, ``mate`` and ``search``):
 
@@ -14,7 +15,8 @@ Episode settings (the same as the dm-control tasks ``forage``, ``mate`` and ``se
   ends with success when the robot docks (a capture, as the survival world defines it).
 * **Mate**: 2 robots, no packs, both LEDs on, both running Mate (both signal mating); the start
   is re-drawn until each sees the other's LED or face. It ends with success at the first IR
-  exchange (ports facing within ±15° at ≤ 0.35 m, ``SurvivalConfig``).
+  exchange (by default ports facing within ±15° at ≤ 0.35 m for one step; ``SurvivalConfig``'s
+  ``mate_angle_deg``, ``mate_distance`` and ``mate_consecutive_steps``).
 * **Search**: 4 robots (3 parked: wheels stopped, LEDs off), 5 packs; any start. It never ends
   early. A robot that docks by accident is released at once (recharging is not Search's job).
 
@@ -30,7 +32,12 @@ draws come from a child of the episode's generator (``rng.spawn``), so the place
 of the plain episodes and two policies evaluated with one seed still see the same starts.
 
 Energy plays no part in a behaviour episode, so robots start with enough energy never to die
-(``initial_energy = max_energy = 1e6``); everything else is the paper's survival world.
+(``initial_energy = max_energy = 1e6``); every other rule is the survival world's, the paper's by
+default or those of an evolution run (``survival=``, :func:`episode_rules`): the behaviours are
+then trained under the rules they will act under. The control step sets the physics substeps per
+step and Search's reference step ``reference_speed · control_dt``; episode lengths
+(``max_steps``) and the discount stay counted in control steps, so a longer control step makes an
+episode last longer in simulated time.
 
 Every episode draws its placement from its own generator, derived from ``(seed, episode)``
 (:func:`episode_rng`), so episode ``k`` of a run is the same placement whatever happened before:
@@ -126,6 +133,24 @@ class EpisodeConfig:
         validate_fields(self)
 
 
+def episode_rules(survival: SurvivalConfig | None = None) -> SurvivalConfig:
+    """The survival rules of a behaviour episode: ``survival`` (default: the paper's) with endless
+    energy.
+
+    Raises:
+        ValueError: ``survival`` is not a ``SurvivalConfig`` (or None).
+    """
+    if survival is None:
+        survival = SurvivalConfig()
+    if not isinstance(survival, SurvivalConfig):
+        raise ValueError(
+            f"survival: must be a SurvivalConfig or None, got {type(survival).__name__}"
+        )
+    return dataclasses.replace(
+        survival, initial_energy=_ENDLESS_ENERGY, max_energy=_ENDLESS_ENERGY
+    )
+
+
 def episode_rng(seed: int, episode: int) -> np.random.Generator:
     """The placement generator of episode ``episode`` of a run with ``seed``."""
     return np.random.default_rng(np.random.SeedSequence([seed, episode, 0x5EED]))
@@ -178,6 +203,8 @@ class BehaviourEpisode:
         timestep: physics timestep, s (default ``WorldConfig``'s).
         profile: optional hardware-like profile (see the module docstring).
         randomise: draw the profile's magnitudes anew each episode (needs ``profile``).
+        survival: the survival rules (default: the paper's); their energy fields are replaced
+            by endless energy (:func:`episode_rules`).
 
     Attributes:
         n_learners: robots acting (2 for Mate, else 1).
@@ -191,6 +218,7 @@ class BehaviourEpisode:
         timestep: float | None = None,
         profile: HardwareProfile | None = None,
         randomise: bool = False,
+        survival: SurvivalConfig | None = None,
     ) -> None:
         self.behaviour = behaviour_index(behaviour)
         self.name = behaviour
@@ -200,6 +228,7 @@ class BehaviourEpisode:
         if not isinstance(randomise, bool) or (randomise and profile is None):
             raise ValueError(f"randomise must be True (with a profile) or False, got {randomise!r}")
         self.profile, self.randomise = profile, randomise
+        survival_cfg = episode_rules(survival)
         robots, packs = {MATE: (2, 0), FORAGE: (1, 5), SEARCH: (4, 5)}[self.behaviour]
         if profile is not None and profile.field.enabled and self.behaviour != MATE:
             packs = profile.field.n_packs
@@ -210,7 +239,6 @@ class BehaviourEpisode:
             world_cfg = WorldConfig(n_robots=robots, n_packs=packs, timestep=timestep)
         fixed = np.random.default_rng(0)  # construction only; every episode re-draws
         self.world = World(world_cfg, fixed)
-        survival_cfg = SurvivalConfig(initial_energy=_ENDLESS_ENERGY, max_energy=_ENDLESS_ENERGY)
         self.survival = SurvivalWorld(self.world, survival_cfg, fixed)
         camera = CameraConfig()
         if profile is not None:

@@ -23,6 +23,12 @@ episode_rng`); MuJoCo is deterministic on one machine. Same seed, same values, b
 
 The shipped values (``behaviours/data``) are the ``<name>.npz`` files of such a run, copied
 there; their metadata records the seed and episode count.
+
+Survival rules: ``survival=`` trains under an evolution run's rules (e.g. a 0.2 s control step;
+:func:`behaviours.episodes.episode_rules`). The rules that differ from the paper's (energy aside,
+which episodes never use) are part of the checkpoint's identity, so a run is never resumed under
+other rules, and are recorded as ``survival`` in the values' metadata; under the paper's rules
+neither carries the key, so checkpoints and values are those of earlier versions.
 """
 
 from __future__ import annotations
@@ -39,13 +45,14 @@ import numpy as np
 
 from behaviours.action_values import ActionValues
 from behaviours.definitions import spec, values_metadata
-from behaviours.episodes import BehaviourEpisode, EpisodeConfig, episode_rng
+from behaviours.episodes import BehaviourEpisode, EpisodeConfig, episode_rng, episode_rules
 from behaviours.inputs import BEHAVIOUR_NAMES
 from behaviours.sarsa import SarsaConfig, SarsaLambda
 from behaviours.tile_coding import TileCoder
 from cyber_rodent.atomic import atomic_output
 from cyber_rodent.commands import COMMAND_NAMES, N_COMMANDS
 from cyber_rodent.profiles import HardwareProfile
+from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.validation import integer, validate_fields
 
 #: Episodes a full training run of each behaviour uses by default (what the shipped values
@@ -140,6 +147,19 @@ def _check_seed(seed: object) -> int:
     ):
         raise ValueError(f"seed: must be an integer in [0, 2**63 - 1], got {seed!r}")
     return int(seed)
+
+
+def survival_changes(survival: SurvivalConfig | None) -> dict[str, Any]:
+    """The episode rules of ``survival`` that differ from the paper's, by field (JSON values).
+
+    Energy is left out: the episodes replace it (:func:`behaviours.episodes.episode_rules`).
+    Example: ``SurvivalConfig(control_dt=0.2, initial_energy=50.0)`` gives
+    ``{"control_dt": 0.2}``; the paper's rules give ``{}``.
+    """
+    rules, paper = asdict(episode_rules(survival)), asdict(episode_rules(None))
+    changes = {name: value for name, value in rules.items() if value != paper[name]}
+    result: dict[str, Any] = json.loads(json.dumps(changes))  # as a checkpoint reads it
+    return result
 
 
 def _learner_rngs(seed: int, n: int) -> list[np.random.Generator]:
@@ -241,6 +261,7 @@ def train(
     config: TrainingConfig | None = None,
     profile: HardwareProfile | None = None,
     randomise: bool = False,
+    survival: SurvivalConfig | None = None,
 ) -> TrainingResult:
     """Train one behaviour and write its values, curve and checkpoint to ``out_dir``.
 
@@ -257,13 +278,16 @@ def train(
         randomise: domain randomisation: each episode draws its noise and actuator
             magnitudes from ``profile``'s ranges (default profile: :class:`HardwareProfile()`),
             see :mod:`behaviours.episodes`.
+        survival: the survival rules of the episodes (default: the paper's); energy aside,
+            every rule applies (:func:`behaviours.episodes.episode_rules`).
 
     Returns:
         The values and the paths written.
 
     Raises:
-        ValueError: unknown behaviour, bad episode count or seed, or (``CheckpointError``) a
-            checkpoint that is damaged or from another behaviour, seed or config.
+        ValueError: unknown behaviour, bad episode count or seed, ``survival`` not a
+            ``SurvivalConfig``, or (``CheckpointError``) a checkpoint that is damaged or from
+            another behaviour, seed, config, profile or survival rules.
         FileNotFoundError: ``resume`` without a checkpoint in ``out_dir``.
     """
     s = spec(behaviour)
@@ -272,6 +296,14 @@ def train(
     config = config or TrainingConfig()
     if not isinstance(config, TrainingConfig):
         raise ValueError(f"config: must be a TrainingConfig, got {type(config).__name__}")
+    rules = survival_changes(survival)  # also refuses a survival that is no SurvivalConfig
+    if randomise is True and profile is None:
+        profile = HardwareProfile()
+    # Built before the output directory: rules the world refuses (a control step that is no
+    # whole number of physics timesteps) leave nothing behind.
+    env = BehaviourEpisode(
+        behaviour, config.episode, profile=profile, randomise=randomise, survival=survival
+    )
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {
@@ -280,9 +312,6 @@ def train(
         "png": out / f"{behaviour}_curve.png",
         "checkpoint": out / f"{behaviour}_checkpoint.npz",
     }
-    if randomise is True and profile is None:
-        profile = HardwareProfile()
-    env = BehaviourEpisode(behaviour, config.episode, profile=profile, randomise=randomise)
     k = env.n_learners
     coder = TileCoder(s.coder)
     weights = np.zeros((N_COMMANDS, coder.table_size))
@@ -298,6 +327,8 @@ def train(
     if profile is not None:  # absent otherwise: plain checkpoints keep their identity
         described = {"hardware": asdict(profile), "randomise": randomise}
         identity["profile"] = json.loads(json.dumps(described))  # as a checkpoint reads it
+    if rules:  # absent under the paper's rules: earlier checkpoints keep their identity
+        identity["survival"] = rules
     start = 0
     if resume:
         if not paths["checkpoint"].is_file():
@@ -305,7 +336,7 @@ def train(
                 f"no checkpoint to resume: {paths['checkpoint']} does not exist"
             )
         state, saved_weights, curve = _read_checkpoint(paths["checkpoint"])
-        for key in {**identity, "profile": None}:  # a profile absent from either side too
+        for key in {**identity, "profile": None, "survival": None}:  # absent on either side too
             want = identity.get(key)
             if state.get(key) != want:
                 raise CheckpointError(
@@ -391,6 +422,7 @@ def train(
             episodes=total,
             trainer=config.to_dict(),
             **({"profile": identity["profile"]} if profile is not None else {}),
+            **({"survival": rules} if rules else {}),
             **_final_training_measures(behaviour, curve),
         ),
     )
@@ -422,9 +454,12 @@ def train_all(
     out_dir: str | os.PathLike[str] = "runs/behaviours",
     resume: bool = False,
     progress: bool = True,
+    survival: SurvivalConfig | None = None,
 ) -> dict[str, TrainingResult]:
     """Train every behaviour in turn (``train`` with the same arguments)."""
     return {
-        name: train(name, episodes, seed, out_dir, resume=resume, progress=progress)
+        name: train(
+            name, episodes, seed, out_dir, resume=resume, progress=progress, survival=survival
+        )
         for name in BEHAVIOUR_NAMES
     }

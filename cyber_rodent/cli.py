@@ -73,6 +73,21 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
         spec(name)  # unknown name: fail before any work
     if args.episodes is not None:
         check_episodes(args.episodes)
+    survival = None  # the paper's rules
+    if args.config or args.set:  # an evolution run's rules: its survival.* settings only
+        from evolution import settings
+        from evolution.runner import RunConfig
+
+        from_file = settings.load_config_file(args.config) if args.config else {}
+        from_set = settings.parse_set(args.set)
+        # A file's survival.initial_energy etc. arrive under the evolution key of their number.
+        shared = {v for k, v in settings.SHARED_KEYS.items() if k.startswith("survival.")}
+        keys = [settings.canonical_key(item.partition("=")[0]) for item in args.set]
+        for key in [*keys, *(k for k in from_file if k not in shared)]:
+            if not key.startswith("survival."):
+                raise CliError(f"train-behaviours takes survival.* settings, got {key}")
+        run = settings.apply(RunConfig(), settings.merge(from_file, from_set))
+        survival = run.survival
     for name in names:
         result = train(
             name,
@@ -83,6 +98,7 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             profile=profile,
             randomise=args.randomise,
+            survival=survival,
         )
         recent = result.curve[-100:]
         if name == "search":
@@ -375,6 +391,19 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="domain randomisation: each episode draws its sensor noise and actuator "
         "differences from the hardware profile's ranges",
+    )
+    train.add_argument(
+        "--config",
+        default=None,
+        help="TOML or JSON file of survival.* settings (the rules of an evolution run)",
+    )
+    train.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        default=[],
+        help="train under a survival rule of an evolution run, e.g. --set "
+        "survival.control_dt=0.2 (repeatable; survival.* keys only; energy is never used)",
     )
     train.set_defaults(func=_cmd_train_behaviours)
 
