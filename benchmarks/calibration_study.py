@@ -19,11 +19,13 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import subprocess
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -42,12 +44,29 @@ GENERATIONS = 30
 
 @dataclass(frozen=True)
 class Study:
-    """One unknown: a sweep over a grid of one setting (or the defaults for the baseline)."""
+    """One unknown: a sweep over a grid of one setting (or the defaults for the baseline).
+
+    A combination (``sets``, and ``behaviours`` trained under the combination's control step)
+    is compared with the paper, not with the baseline: it changes more than one setting.
+    """
 
     name: str
     title: str
     grid: tuple[str, ...] = ()
     methods: str = "ee,ce"
+    sets: tuple[str, ...] = ()
+    behaviours: str | None = None
+
+    @property
+    def single(self) -> bool:
+        """Does the study vary one setting around the defaults?"""
+        return not self.sets
+
+
+#: Behaviours trained under a 0.2 s control step, for the combinations that use one:
+#: ``cyber-rodent train-behaviours --set survival.control_dt=0.2 --seed 0 --out DIR``.
+BEHAVIOURS_DT02 = "behaviours_dt0.2"
+_DT02 = ("survival.control_dt=0.2",)
 
 
 STUDIES = (
@@ -55,6 +74,21 @@ STUDIES = (
     Study("ir_exchange", "IR exchange duration", ("survival.mate_consecutive_steps=2,3",)),
     Study("mate_reflex", "reflex after mating", ("survival.mate_reflex=true",)),
     Study("control_step", "control step length", ("survival.control_dt=0.15,0.2",)),
+    Study(
+        "candidate",
+        "0.2 s step, retrained behaviours, reflex after mating",
+        ("survival.mate_reflex=true",),
+        sets=_DT02,
+        behaviours=BEHAVIOURS_DT02,
+    ),
+    Study(
+        "candidate2",
+        "the same, reflex 2-4 steps (86-172° at 0.2 s)",
+        ("survival.mate_consecutive_steps=1,2",),
+        sets=(*_DT02, "survival.mate_reflex=true", "survival.reflex_min_steps=2",
+              "survival.reflex_max_steps=4"),  # fmt: skip
+        behaviours=BEHAVIOURS_DT02,
+    ),
     Study("reflex_length", "reflex length (max steps)", ("survival.reflex_max_steps=4,12",)),
     Study("capture_rule", "what counts as a capture", ("survival.capture_rule=recharge",)),
     Study("mate_distance", "mating distance", ("survival.mate_distance=0.25,0.5",)),
@@ -80,18 +114,29 @@ def sweep_command(study: Study, out: Path) -> list[str]:
     ]  # fmt: skip
     for axis in study.grid:
         command += ["--grid", axis]
+    for setting in study.sets:
+        command += ["--set", setting]
     return command
 
 
 def run_studies(studies: Sequence[Study], out: Path) -> None:
-    """Run (or resume) every study's sweep, one after the other."""
+    """Run (or resume) every study's sweep, one after the other (training the behaviours a
+    combination needs first)."""
+    cli = [sys.executable, "-m", "cyber_rodent.cli"]
     for study in studies:
+        env = dict(os.environ)
+        if study.behaviours is not None:
+            values = (out.parent / study.behaviours).resolve()
+            if not (values / "mate.npz").exists():
+                train = ["train-behaviours", "--set", _DT02[0], "--seed", "0", "--out", str(values)]
+                print("cyber-rodent", " ".join(train), flush=True)
+                subprocess.run([*cli, *train, "--no-progress"], check=True)
+            env["CYBER_RODENT_BEHAVIOUR_VALUES"] = str(values)
         command = sweep_command(study, out)
         if (out / study.name / "sweep.json").exists():
             command.append("--resume")
         print(" ".join(command), flush=True)
-        executable = [sys.executable, "-m", "cyber_rodent.cli", *command[1:]]
-        subprocess.run([*executable, "--no-progress"], check=True)
+        subprocess.run([*cli, *command[1:], "--no-progress"], check=True, env=env)
 
 
 #: Two matings of one robot pair this close (control steps) are a chain: the next agents of two
@@ -159,6 +204,7 @@ def collect(out: Path, window: int) -> pd.DataFrame:
         root = out / study.name
         if not root.is_dir():
             continue
+        loaded: dict[str, tuple[Mapping[str, Any], dict[str, list[pd.DataFrame]]]]
         if read_grid(root) is None:
             loaded = {"defaults": ({}, load_sweep(root))}
         else:
@@ -180,16 +226,19 @@ def collect(out: Path, window: int) -> pd.DataFrame:
     rows = rows.drop(columns=[*keys, "cell"])
     baseline = rows[rows["study"] == "baseline"]
     expanded = [rows[rows["study"] != "baseline"]]
-    for study in STUDIES[1:]:  # the defaults are every study's reference value
-        if not study.grid or not (rows["study"] == study.name).any():
+    for study in STUDIES[1:]:  # the defaults are every single study's reference value
+        if not study.single or not (rows["study"] == study.name).any():
             continue
         key = study.grid[0].partition("=")[0]
         base = baseline[baseline["method"].isin(study.methods.split(","))].copy()
         base["study"], base["key"], base["value"] = study.name, key, defaults[key].default
         expanded.append(base)
     table = pd.concat(expanded, ignore_index=True)
-    table["default"] = [defaults[k].default == v for k, v in zip(table["key"], table["value"],
-                                                                  strict=True)]  # fmt: skip
+    single = {s.name for s in STUDIES if s.single}
+    table["default"] = [
+        study in single and defaults[k].default == v
+        for study, k, v in zip(table["study"], table["key"], table["value"], strict=True)
+    ]
     order = {s.name: i for i, s in enumerate(STUDIES)}
     table["_order"] = table["study"].map(order)
     table["_value"] = table["value"].map(lambda v: float(v) if not isinstance(v, str) else 0.0)
