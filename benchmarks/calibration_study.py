@@ -22,6 +22,7 @@ import math
 import os
 import subprocess
 import sys
+import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -247,6 +248,13 @@ def collect(out: Path, window: int) -> pd.DataFrame:
     return table[columns + [c for c in table.columns if c not in columns]]
 
 
+def _label(value: object) -> str:
+    """A grid value as a tick label (3.0 → "3")."""
+    if isinstance(value, float) and value.is_integer():
+        return str(int(value))
+    return str(value)
+
+
 def plot(table: pd.DataFrame, out_base: Path) -> list[Path]:
     """One column per study: batteries, matings and completed agents against the value."""
     from evolution.figures import METHOD_STYLE, save_figure, styled_pyplot
@@ -275,13 +283,15 @@ def plot(table: pd.DataFrame, out_base: Path) -> list[Path]:
                 if column in ("batteries", "matings"):
                     ax.axhline(PAPER[method][column], color=colour, ls=":", lw=1)
             defaults = part.drop_duplicates("value").set_index("value").reindex(values)["default"]
-            labels = [f"{v}*" if d else f"{v}" for v, d in zip(values, defaults, strict=True)]
+            marks = ["*" if d else "" for d in defaults]
+            labels = [_label(v) + m for v, m in zip(values, marks, strict=True)]
             ax.set_xticks(x, labels, fontsize=8)
+            ax.set_xlim(-0.5, len(values) - 0.5)
             ax.grid(axis="y", alpha=0.3)
             if col == 0:
                 ax.set_ylabel(label)
             if r == 0:
-                ax.set_title(study.title, fontsize=9)
+                ax.set_title("\n".join(textwrap.wrap(study.title, 26)), fontsize=9)
         axes[-1][col].set_xlabel(study.grid[0].partition("=")[0].partition(".")[2], fontsize=8)
     axes[0][0].legend(frameon=False, fontsize=8)
     window = table["generations"].iloc[0]
