@@ -33,7 +33,7 @@ import pandas as pd
 
 from evolution.grid import cells, compare_cells, load_cells, read_grid
 from evolution.settings import settings
-from evolution.sweep import load_sweep
+from evolution.sweep import load_sweep, parse_seeds
 
 #: The paper's headline numbers per 400-step life (Fig. 6): EE at generation 120, CE after
 #: it converged.
@@ -197,8 +197,9 @@ def _rates(out: Path, window: int) -> pd.DataFrame:
     return pd.DataFrame(rows).groupby(["study", "cell", "method"], as_index=False).mean()
 
 
-def collect(out: Path, window: int) -> pd.DataFrame:
-    """One row per study, value and method (the baseline's row under every study's key)."""
+def collect(out: Path, window: int, partial: bool = False) -> pd.DataFrame:
+    """One row per study, value and method (the baseline's row under every single study's
+    key); only cells whose runs all reached the last generation, unless ``partial``."""
     defaults = settings()
     frames = []
     for study in STUDIES:
@@ -211,6 +212,9 @@ def collect(out: Path, window: int) -> pd.DataFrame:
         else:
             loaded = load_cells(root)
         table = compare_cells(loaded, window)
+        if len(table) and not partial:
+            last = table["generations"].str.endswith(f"-{GENERATIONS - 1}")
+            table = table[last & (table["runs"] == len(parse_seeds(SEEDS)))]
         if table.empty:
             continue
         table.insert(0, "study", study.name)
@@ -310,13 +314,16 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--run", action="store_true", help="run (or resume) the sweeps first")
     parser.add_argument("--only", default=None, help="comma list of study names to run")
     parser.add_argument("--window", type=int, default=10, help="final generations per run")
+    parser.add_argument(
+        "--partial", action="store_true", help="also cells whose runs are still going"
+    )
     parser.add_argument("--table", type=Path, default=Path("results/calibration.csv"))
     parser.add_argument("--figure", type=Path, default=Path("docs/images/calibration"))
     args = parser.parse_args(argv)
     if args.run:
         chosen = args.only.split(",") if args.only else [s.name for s in STUDIES]
         run_studies([s for s in STUDIES if s.name in chosen], args.out)
-    table = collect(args.out, args.window)
+    table = collect(args.out, args.window, args.partial)
     args.table.parent.mkdir(parents=True, exist_ok=True)
     table.to_csv(args.table, index=False, float_format="%.4g")
     paths = plot(table, args.figure)
