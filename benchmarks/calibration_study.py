@@ -90,10 +90,10 @@ STUDIES = (
               "survival.reflex_max_steps=4"),  # fmt: skip
         behaviours=BEHAVIOURS_DT02,
     ),
-    Study("reflex_length", "reflex length (max steps)", ("survival.reflex_max_steps=4,12",)),
-    Study("capture_rule", "what counts as a capture", ("survival.capture_rule=recharge",)),
     Study("mate_distance", "mating distance", ("survival.mate_distance=0.25,0.5",)),
     Study("mate_angle", "mating angle", ("survival.mate_angle_deg=10,25",)),
+    Study("reflex_length", "reflex length (max steps)", ("survival.reflex_max_steps=4,12",)),
+    Study("capture_rule", "what counts as a capture", ("survival.capture_rule=recharge",)),
     Study("pack_gap", "pack spacing", ("world.pack_gap=0.6,0.9",)),
     Study("decay_docked", "decay while docked", ("survival.decay_while_recharging=true",)),
     Study("reflex_speed", "reflex speed", ("survival.reflex_wheel_speed=0.15,0.6",)),
