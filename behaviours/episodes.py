@@ -4,7 +4,7 @@ The paper trains the basic behaviours "in the same environmental setting used fo
 evolutionary experiments" (§3.4). An episode here runs on the evolution runner's own lean path:
 a :class:`~cyber_rodent.survival.SurvivalWorld` (MuJoCo physics, docking by teeth/electrode
 contact, IR mating) and the geometric vision provider, stepped one control step
-(``SurvivalConfig.control_dt``, 0.1 s by default) at a time with the discrete wheel commands. The
+(``SurvivalConfig.control_dt``, 0.2 s by default) at a time with the discrete wheel commands. The
 dm-control tasks of :mod:`cyber_rodent.tasks` wrap the same objects with the same start
 conditions; we drive the world directly because training needs hundreds of thousands of steps and
 the episode loop is then the only overhead.

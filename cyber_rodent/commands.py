@@ -9,8 +9,9 @@ invalidates trained action values, hence :data:`COMMAND_SET_VERSION`.
 Speeds are wheel rim speeds in m/s (what :meth:`cyber_rodent.world.World.set_wheel_speeds` and
 :meth:`cyber_rodent.survival.SurvivalWorld.step` take), well inside the motor limit
 (``constants.TOP_SPEED`` = 1.3 m/s). They are chosen for docking and mating, which need slow,
-precise approaches at a 0.1 s control step: at 0.5 m/s the robot moves 5 cm per step, about
-the width of a pack's electrode ring, and a spin turns 0.25 rad (14°) per step.
+precise approaches: at the default 0.2 s control step and 0.5 m/s the robot moves 10 cm per
+step, about the width of a pack (8 cm) and its electrode ring, and a spin turns 0.5 rad (29°)
+per step.
 """
 
 from __future__ import annotations

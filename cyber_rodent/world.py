@@ -111,7 +111,7 @@ class WorldConfig:
     Attributes:
         n_robots: number of Cyber Rodents (paper, simulation: 4).
         n_packs: number of battery packs (paper, simulation: 5; hardware: 6).
-        timestep: physics timestep in seconds. 1/120 s (12 substeps per 0.1 s control step)
+        timestep: physics timestep in seconds. 1/120 s (24 substeps per 0.2 s control step)
             is the largest step, of those that divide the control step, whose trajectories
             stay within 2 cm of a 5x finer reference over 10 s of scripted driving
             (``benchmarks/timestep_study.py``: 1.90 cm; 1/110 s gives 2.39 cm).

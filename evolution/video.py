@@ -4,7 +4,7 @@ Each frame shows, on the left, the top-down field with each robot's label, energ
 behaviour, LED and docking state, and a line between robots at the moment they exchange
 genomes; on the right, every robot's 360° omni strip (what its camera sees, straight ahead in
 the middle) under a status line (agent, generation, energy, behaviour). One frame per control
-step at 10 fps is real time (a control step is 0.1 s).
+step at 5 fps is real time (a control step is 0.2 s by default).
 
 The video continues the run from where the runner stands (for example, a run loaded from a
 checkpoint) by stepping it; the run directory on disk is never modified. The MP4 (H.264 via
@@ -46,8 +46,9 @@ class VideoConfig:
     """How a video looks.
 
     Attributes:
-        fps: frames per second of the MP4 (10 with ``steps_per_frame=1`` is real time).
-        steps_per_frame: control steps between frames (2 = twice real time at 10 fps).
+        fps: frames per second of the MP4 (with ``steps_per_frame=1``, 5 is real time at the
+            default 0.2 s control step, and the default 10 is twice real time).
+        steps_per_frame: control steps between frames.
         field_px: side of the top-down view in pixels (a multiple of 16).
         mating_flash_frames: frames a mating line stays visible.
     """

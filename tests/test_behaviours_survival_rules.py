@@ -86,15 +86,15 @@ def test_mate_success_needs_the_rules_consecutive_steps(consecutive: int, succee
 def test_episode_rules_keep_endless_energy_and_refuse_other_types() -> None:
     env = BehaviourEpisode("forage", survival=SurvivalConfig(initial_energy=5.0, max_energy=10.0))
     assert env.survival.config.initial_energy == env.survival.config.max_energy == 1e6
-    assert env.survival.n_substeps == 12 and env.dt == 0.1
+    assert env.survival.n_substeps == 24 and env.dt == 0.2  # the default control step
     with pytest.raises(ValueError, match="survival: must be a SurvivalConfig"):
         BehaviourEpisode("forage", survival={"control_dt": 0.2})  # type: ignore[arg-type]
 
 
 def test_survival_changes_leave_out_energy() -> None:
     assert survival_changes(None) == {} == survival_changes(SurvivalConfig())
-    changed = SurvivalConfig(control_dt=0.2, initial_energy=50.0, mate_consecutive_steps=2)
-    assert survival_changes(changed) == {"control_dt": 0.2, "mate_consecutive_steps": 2}
+    changed = SurvivalConfig(control_dt=0.1, initial_energy=50.0, mate_consecutive_steps=2)
+    assert survival_changes(changed) == {"control_dt": 0.1, "mate_consecutive_steps": 2}
 
 
 # --- training -----------------------------------------------------------------------------------
@@ -112,23 +112,23 @@ def test_the_papers_rules_train_exactly_as_without_rules(tmp_path: Path) -> None
 
 def test_other_rules_are_recorded_and_change_the_values(tmp_path: Path) -> None:
     plain = _quick(tmp_path / "plain")
-    longer = _quick(tmp_path / "dt", survival=SurvivalConfig(control_dt=0.2))
-    assert longer.values.metadata["survival"] == {"control_dt": 0.2}
-    assert load_values("forage", tmp_path / "dt").metadata["survival"] == {"control_dt": 0.2}
-    assert not np.array_equal(plain.curve, longer.curve)
+    shorter = _quick(tmp_path / "dt", survival=SurvivalConfig(control_dt=0.1))
+    assert shorter.values.metadata["survival"] == {"control_dt": 0.1}
+    assert load_values("forage", tmp_path / "dt").metadata["survival"] == {"control_dt": 0.1}
+    assert not np.array_equal(plain.curve, shorter.curve)
 
 
 def test_resume_under_other_rules_is_refused(tmp_path: Path) -> None:
     _quick(tmp_path / "plain", episodes=1)
     with pytest.raises(CheckpointError, match="survival"):
-        _quick(tmp_path / "plain", SurvivalConfig(control_dt=0.2), episodes=2, resume=True)
-    rules = SurvivalConfig(control_dt=0.2)
+        _quick(tmp_path / "plain", SurvivalConfig(control_dt=0.1), episodes=2, resume=True)
+    rules = SurvivalConfig(control_dt=0.1)
     _quick(tmp_path / "dt", rules, episodes=1)
     with pytest.raises(CheckpointError, match="survival"):
         _quick(tmp_path / "dt", episodes=2, resume=True)
     with pytest.raises(CheckpointError, match="survival"):
         _quick(tmp_path / "dt", SurvivalConfig(control_dt=0.3), episodes=2, resume=True)
-    resumed = _quick(tmp_path / "dt", SurvivalConfig(control_dt=0.2), episodes=2, resume=True)
+    resumed = _quick(tmp_path / "dt", SurvivalConfig(control_dt=0.1), episodes=2, resume=True)
     assert resumed.episodes_run == 1
 
 
@@ -173,6 +173,6 @@ def test_cli_config_file_takes_survival_settings_only(
     good = tmp_path / "good.toml"
     good.write_text("[survival]\ncontrol_dt = 0.3\ninitial_energy = 50.0\n")
     # --set wins over the file.
-    argv += ["--episodes", "1", "--config", str(good), "--set", "survival.control_dt=0.2"]
+    argv += ["--episodes", "1", "--config", str(good), "--set", "survival.control_dt=0.1"]
     assert main(argv) == 0, capsys.readouterr().err
-    assert load_values("forage", out).metadata["survival"] == {"control_dt": 0.2}
+    assert load_values("forage", out).metadata["survival"] == {"control_dt": 0.1}

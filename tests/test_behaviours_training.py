@@ -207,4 +207,4 @@ def test_cli_bad_input_is_one_line_exit_2(tmp_path, args, message):
 def test_behaviour_indices_match_the_episode_worlds():
     assert BehaviourEpisode("mate").n_learners == 2 and MATE == 0
     assert BehaviourEpisode("forage").n_learners == 1 and FORAGE == 1
-    assert math.isclose(BehaviourEpisode("forage").dt, 0.1)
+    assert math.isclose(BehaviourEpisode("forage").dt, 0.2)

@@ -153,4 +153,4 @@ def test_make_config_applies_overrides_consistently() -> None:
     assert "lifetime_steps" in OVERRIDES and "crossover_probability" in OVERRIDES
     default = make_config()
     assert default.evolution == EvolutionConfig() and default.world.n_packs == 5
-    assert math.isclose(default.survival.control_dt, 0.1)
+    assert math.isclose(default.survival.control_dt, 0.2)

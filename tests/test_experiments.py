@@ -210,7 +210,7 @@ def test_parse_seeds() -> None:
         (["evolve", "--set", "survival.mate_distance=0"], "survival.mate_distance must be a"),
         (["sweep", "--grid", "survival.reflex_max_steps"], "use KEY=V1,V2,..."),
         (["sweep", "--grid", "survival.reflex_max_steps=4,x"], "reflex_max_steps must be an"),
-        (["sweep", "--grid", "survival.reflex_max_steps=2,8"], "reflex_max_steps must be an"),
+        (["sweep", "--grid", "survival.reflex_max_steps=1,8"], "reflex_max_steps must be an"),
         (["sweep", "--seeds", "9-2"], "seed range"),
         (["sweep", "--methods", "ee,xx"], "methods"),
         (["sweep", "--seeds", "0-1", "--ray", "127.0.0.1:1"], "cannot reach a Ray cluster"),

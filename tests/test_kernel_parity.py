@@ -594,7 +594,11 @@ def test_teeth_on_electrodes_matches_its_reference(scene_world: World, scenes: S
 # Scripted survival worlds: robots that seek packs, seek each other and wander.
 SEEK_PACK, SEEK_ROBOT, WANDER = 0, 1, 2
 #: Net +4 per recharge step: a robot that docks with less than 40 reaches the step limit first.
-SURVIVAL_CONFIG = SurvivalConfig(decay_while_recharging=True)
+#: A hungrier world than the default (decay 1.5 per step), so that robots die often enough, and
+#: without the reflex after mating, so that partners left facing mate again: every rule of the
+#: kernels fires many times (the reflex after mating is not a kernel; see
+#: tests/test_survival_physics.py).
+SURVIVAL_CONFIG = SurvivalConfig(decay_while_recharging=True, energy_decay=1.5, mate_reflex=False)
 #: Below this energy a scripted robot seeks a pack whatever its mode.
 HUNGRY = 20.0
 

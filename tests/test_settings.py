@@ -136,7 +136,7 @@ def test_shared_numbers_are_one_setting() -> None:
 def test_errors_name_the_dotted_key() -> None:
     cases = {
         "survival.mate_distance": (9.0, r"survival.mate_distance must be a number in \(0, "),
-        "survival.reflex_max_steps": (2, r"survival.reflex_max_steps must be an integer in \[4,"),
+        "survival.reflex_max_steps": (1, r"survival.reflex_max_steps must be an integer in \[2,"),
         "genetic.crossover_probability": (2.0, r"genetic.crossover_probability must be a number"),
         "genetic.tournament_size": (500, r"genetic.tournament_size must be an integer in \[1, 1"),
         "evolution.population_size": (10, r"evolution.population_size \(10\) must be divisible"),

@@ -67,13 +67,14 @@ def _drive(name: str, steps: int) -> np.ndarray:
 
 
 def test_forward_moves_half_a_metre_per_second():
-    # 0.5 m/s for 1 s: 0.5 m, less a little for the motors spinning up.
-    dx, dy, dyaw = _drive("forward", 10)
+    # 0.5 m/s for 1 s (5 control steps of 0.2 s): 0.5 m, less a little for the motors
+    # spinning up.
+    dx, dy, dyaw = _drive("forward", 5)
     assert 0.42 < dx <= 0.5 and abs(dy) < 0.01 and abs(dyaw) < 0.02
 
 
 def test_spin_left_turns_counter_clockwise_in_place():
-    # Rim speeds ±0.2 m/s at a half wheel base of 8 cm: 2.5 rad/s, 0.25 rad per step.
-    dx, dy, dyaw = _drive("spin_left", 4)
+    # Rim speeds ±0.2 m/s at a half wheel base of 8 cm: 2.5 rad/s, 0.5 rad per 0.2 s step.
+    dx, dy, dyaw = _drive("spin_left", 2)
     assert 0.7 < dyaw <= 1.0 + 1e-6
     assert math.hypot(dx, dy) < 0.02

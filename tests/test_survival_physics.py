@@ -156,10 +156,12 @@ def test_docked_robot_is_not_pushed_off_by_another():
         sw.step(np.array([[0.4, 0.4], [0.0, 0.0]]), no, no, yes)
     assert sw.docked[0]
     p0 = w.poses()[0].copy()
-    for _ in range(15):
+    rammed = []
+    for _ in range(15):  # 3 s of ramming at 0.8 m/s
         sw.step(np.array([[0.0, 0.0], [0.8, 0.8]]), no, no, yes)
-    assert sw.collisions()[1]  # the rammer is in contact
-    assert sw.docked[0]
+        rammed.append(bool(sw.collisions()[1]))
+        assert sw.docked[0]
+    assert sum(rammed) >= 5  # the rammer keeps pushing (it bounces off between pushes)
     assert np.linalg.norm(w.poses()[0, :2] - p0[:2]) < 0.01
 
 
@@ -226,13 +228,13 @@ def test_one_robot_signalling_alone_does_not_mate():
 
 def test_driving_towards_each_other_mates_once_in_range():
     sw = facing_pair(1.0)
-    found = mate_steps(sw, (True, True), 25, wheels=np.full((2, 2), 0.15))
+    found = mate_steps(sw, (True, True), 13, wheels=np.full((2, 2), 0.15))
     assert found, "no mating while closing in head-on"
     k, pair = found[0]
     assert pair == (0, 1)
-    # Closing at 2 x 0.15 m/s from 1.0 m, the port gap first drops under 0.35 m after ~22
-    # steps; it must not happen much earlier than that.
-    assert 19 <= k <= 24
+    # Closing at 2 x 0.15 m/s from 1.0 m, the port gap first drops under 0.35 m after ~2.2 s,
+    # i.e. ~11 steps of 0.2 s; it must not happen much earlier than that.
+    assert 9 <= k <= 12
 
 
 def test_consecutive_steps_are_required():
@@ -268,7 +270,7 @@ def test_a_robot_mates_with_one_partner_per_step():
 
 
 def test_mate_reflex_turns_both_partners_away_after_an_exchange():
-    cfg = SurvivalConfig(mate_reflex=True, reflex_min_steps=4, reflex_max_steps=8)
+    cfg = SurvivalConfig(mate_reflex=True, reflex_min_steps=4, reflex_max_steps=8)  # 0.8-1.6 s
     sw = SurvivalWorld(WorldConfig(n_robots=2, n_packs=0), cfg, np.random.default_rng(3))
     along = math.sqrt(0.3**2 - 0.04**2) + 2 * PORT_FORWARD
     sw.world.set_robot_pose(0, -along / 2, 0.0, 0.0)
@@ -284,5 +286,8 @@ def test_mate_reflex_turns_both_partners_away_after_an_exchange():
     turning = int(sw.reflex_steps_left.min())
     assert mate_steps(sw, (True, True), turning) == []
     # Without the rule the pair exchanges again on the very next step.
-    plain = facing_pair(0.3)
+    plain = SurvivalWorld(WorldConfig(n_robots=2, n_packs=0), SurvivalConfig(mate_reflex=False))
+    plain.world.set_robot_pose(0, -along / 2, 0.0, 0.0)
+    plain.world.set_robot_pose(1, along / 2, 0.0, math.pi)
+    mujoco.mj_forward(plain.world.model, plain.world.data)
     assert mate_steps(plain, (True, True), 2) == [(0, (0, 1)), (1, (0, 1))]

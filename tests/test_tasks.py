@@ -41,7 +41,7 @@ def test_load_by_name_gives_the_documented_settings():
     assert isinstance(env.task, tasks.Survival)
     assert env.task.world.config.n_robots == 4 and env.task.world.config.n_packs == 5
     assert env.task.episode_steps == 400
-    assert env.control_timestep() == pytest.approx(0.1)
+    assert env.control_timestep() == pytest.approx(0.2)
     assert set(env.observation_spec()) == set(tasks.OBSERVATION_NAMES)
     assert list(env.action_spec()) == ["wheels", "led", "mate", "recharge"]
     assert env.action_spec()["wheels"].maximum == C.TOP_SPEED
@@ -159,11 +159,11 @@ def test_survival_mating_rewards_both_partners_and_led_is_observed():
         },
     )
     mate = np.array([1.0, 1.0, 1.0, 0.0])
-    ts = env.step(wheels_action(env, np.zeros((4, 2)), mate=mate))
-    assert np.array_equal(ts.reward, [1.0, 1.0, 0.0, 0.0])
-    action = wheels_action(env, np.zeros((4, 2)))
+    action = wheels_action(env, np.zeros((4, 2)), mate=mate)
     action["led"] = np.array([1.0, 0.0, 0.0, 0.0])
+    # Observed at the end of the exchange's step, before the partners turn away (mate_reflex).
     ts = env.step(action)
+    assert np.array_equal(ts.reward, [1.0, 1.0, 0.0, 0.0])
     assert ts.observation["led_on"].tolist() == [1.0, 0.0, 0.0, 0.0]
     assert ts.observation["nearest_led"][1, 2] == 1.0  # robot 1 sees robot 0's green LED
     assert abs(ts.observation["nearest_led"][1, 0]) < math.radians(10)  # straight ahead

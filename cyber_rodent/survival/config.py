@@ -35,11 +35,13 @@ class SurvivalConfig:
         decay_while_recharging: also drain ``energy_decay`` on recharge steps (net +4 instead of
             +5). Off by default: 40 steps x 5 = 200 = ``max_energy`` is the paper's arithmetic.
         max_recharge_steps: consecutive recharge steps after which recharging ends (paper: 40).
-        control_dt: seconds of simulated time per control step (docs/design.md §5: 0.1 s); must be a
-            whole number of physics timesteps.
+        control_dt: seconds of simulated time per control step; must be a whole number of
+            physics timesteps. 0.2 s (5 Hz, a plausible cycle for the CR's on-board omni vision)
+            brings the batteries per life nearest the paper's (docs/calibration.md,
+            docs/design.md §9.1).
         reflex_min_steps: shortest post-recharge rotation reflex, control steps.
         reflex_max_steps: longest reflex; the length is drawn uniformly in [min, max]. At the
-            default spin speed a step turns 0.375 rad, so 4..8 steps turn 86°..172°.
+            default spin speed a step of 0.2 s turns 0.75 rad, so 2..4 steps turn 86°..172°.
         reflex_wheel_speed: wheel rim speed of the reflex spin, m/s.
         dock_bearing_tolerance_deg: a teeth/electrode contact is a capture only if the pack's
             centre lies within this angle of the robot's heading. With 6 cm wide teeth and a
@@ -51,7 +53,7 @@ class SurvivalConfig:
         mate_distance: largest IR port-to-port distance for an exchange, m (docs/design.md
             §5: 0.35).
         mate_consecutive_steps: control steps the mating condition must hold (docs/design.md
-            §5: 1).
+            §9.7: 1, a 0.2 s exchange).
         capture_rule: when a docking counts as a captured battery (``StepEvents.captured``):
             "docking" on the step the teeth dock onto the pack; "recharge" only on the
             docking's first recharge step, so a docking whose recharge the controller stops
@@ -61,7 +63,8 @@ class SurvivalConfig:
             after recharging. The paper turns a robot away from the pack it recharged from "to
             prevent ... continuing to recharge from the same battery" and says nothing of what
             follows a mating; without a reflex the next agents of two robots still nose to nose
-            can mate at once (docs/design.md §9.7).
+            mate at once, and such chained matings were most of CE's (docs/calibration.md,
+            docs/design.md §9.7).
     """
 
     initial_energy: float = number(
@@ -79,10 +82,10 @@ class SurvivalConfig:
         40, 1, 1_000_000, unit="control steps", source="paper Table 1"
     )
     control_dt: float = number(
-        0.1, 0.0, 10.0, low_open=True, unit="s", source="docs/design.md §9.1"
+        0.2, 0.0, 10.0, low_open=True, unit="s", source="docs/design.md §9.1"
     )
-    reflex_min_steps: int = integer(4, 0, 1000, unit="control steps", source="docs/design.md §9.6")
-    reflex_max_steps: int = integer(8, 0, 1000, unit="control steps", source="docs/design.md §9.6")
+    reflex_min_steps: int = integer(2, 0, 1000, unit="control steps", source="docs/design.md §9.6")
+    reflex_max_steps: int = integer(4, 0, 1000, unit="control steps", source="docs/design.md §9.6")
     reflex_wheel_speed: float = number(
         0.3, 0.0, C.TOP_SPEED, low_open=True, unit="m/s", source="docs/design.md §9.6"
     )
@@ -100,7 +103,7 @@ class SurvivalConfig:
         1, 1, 1_000_000, unit="control steps", source="docs/design.md §9.7"
     )
     capture_rule: str = choice("docking", CAPTURE_RULES, source="docs/design.md §9.5")
-    mate_reflex: bool = boolean(False, source="docs/design.md §9.7")
+    mate_reflex: bool = boolean(True, source="docs/design.md §9.7")
 
     def __post_init__(self) -> None:
         validate_fields(self)

@@ -28,7 +28,7 @@ TASK_NAMES = tuple(TASKS)
 class CyberRodentEnvironment(control.Environment):  # type: ignore[misc]  # dm_control: no hints
     """``dm_control.rl.control.Environment`` with the Cyber Rodent conventions.
 
-    * One control step is ``SurvivalConfig.control_dt`` (0.1 s) of physics substeps, stepped
+    * One control step is ``SurvivalConfig.control_dt`` (0.2 s) of physics substeps, stepped
       with plain ``mj_step`` (``legacy_step=False``), exactly as the lean path steps them.
     * Episodes last ``task.episode_steps`` control steps, counted as an integer (a time limit
       in seconds would be divided by a float timestep and could be off by one step).

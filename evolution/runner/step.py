@@ -235,7 +235,7 @@ class EvolutionRunner:
         """
         # sense → decide → act: one compiled call on the default path
         self.sense_decide_act()
-        # physics → events: commands, 12 physics substeps, energy, docking, mating
+        # physics → events: commands, the physics substeps, energy, docking, mating
         action = self.action
         events = self.survival.step(
             action.wheels, action.led, action.mate, self.controller.continue_recharge
