@@ -53,7 +53,7 @@ def test_defaults_are_the_papers_numbers():
     assert (cfg.recharge_rate, cfg.max_recharge_steps) == (5, 40)
     # Our readings where the paper is silent (docs/design.md §9, docs/calibration.md).
     assert cfg.control_dt == 0.2 and (cfg.reflex_min_steps, cfg.reflex_max_steps) == (2, 4)
-    assert (cfg.mate_angle_deg, cfg.mate_distance, cfg.mate_consecutive_steps) == (15, 0.35, 1)
+    assert (cfg.mate_angle_deg, cfg.mate_distance, cfg.mate_consecutive_steps) == (15, 0.35, 2)
     assert cfg.mate_reflex and cfg.capture_rule == "docking"
 
 
