@@ -93,8 +93,8 @@ def test_episode_rules_keep_endless_energy_and_refuse_other_types() -> None:
 
 def test_survival_changes_leave_out_energy() -> None:
     assert survival_changes(None) == {} == survival_changes(SurvivalConfig())
-    changed = SurvivalConfig(control_dt=0.1, initial_energy=50.0, mate_consecutive_steps=2)
-    assert survival_changes(changed) == {"control_dt": 0.1, "mate_consecutive_steps": 2}
+    changed = SurvivalConfig(control_dt=0.1, initial_energy=50.0, mate_consecutive_steps=3)
+    assert survival_changes(changed) == {"control_dt": 0.1, "mate_consecutive_steps": 3}
 
 
 # --- training -----------------------------------------------------------------------------------

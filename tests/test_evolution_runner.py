@@ -338,7 +338,9 @@ def test_rendered_camera_drives_the_runner_and_resumes_identically(tmp_path) -> 
 EE_SEED = 0
 #: The EE fixture's world: 2.5 times the paper's decay, so that agents die within its 3 short
 #: generations as well as dock, mate and reproduce.
-EE_RUN_CONFIG = small_config("ee").replace(survival=SurvivalConfig(energy_decay=2.5))
+EE_RUN_CONFIG = small_config("ee").replace(
+    survival=SurvivalConfig(energy_decay=2.5, mate_consecutive_steps=1)
+)
 CE_SEED = 0
 
 
@@ -577,7 +579,7 @@ def test_fused_sense_decide_act_equals_the_step_by_step_path(method) -> None:
         runner = EvolutionRunner.from_checkpoint(tmp, BehaviourPolicies.load_default())
         if not fused:
             stage_by_stage(runner)
-        for _ in range(800):
+        for _ in range(1300):
             runner.step()
         assert (runner.sense_decide_act != runner.sense_decide_act_stepwise) == fused
         return runner

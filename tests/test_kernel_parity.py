@@ -598,7 +598,9 @@ SEEK_PACK, SEEK_ROBOT, WANDER = 0, 1, 2
 #: without the reflex after mating, so that partners left facing mate again: every rule of the
 #: kernels fires many times (the reflex after mating is not a kernel; see
 #: tests/test_survival_physics.py).
-SURVIVAL_CONFIG = SurvivalConfig(decay_while_recharging=True, energy_decay=1.5, mate_reflex=False)
+SURVIVAL_CONFIG = SurvivalConfig(
+    decay_while_recharging=True, energy_decay=1.5, mate_reflex=False, mate_consecutive_steps=1
+)
 #: Below this energy a scripted robot seeks a pack whatever its mode.
 HUNGRY = 20.0
 

@@ -204,8 +204,10 @@ def test_pair_geometry_is_what_the_scene_says():
 
 
 def test_facing_at_0_3_m_mate():
+    # The default IR exchange needs the condition on 2 consecutive steps: the second one mates.
     sw = facing_pair(0.3)
-    assert mate_steps(sw, (True, True), 1) == [(0, (0, 1))]
+    assert sw.config.mate_consecutive_steps == 2
+    assert mate_steps(sw, (True, True), 2) == [(1, (0, 1))]
 
 
 def test_facing_at_0_6_m_do_not_mate():
@@ -255,8 +257,10 @@ def test_consecutive_steps_are_required():
 
 def test_a_robot_mates_with_one_partner_per_step():
     # With a wide 60° cone robot 0 faces robot 1 (0.31 m) and robot 2 (0.24 m) at once;
-    # robots 1 and 2 do not face each other. The nearer pair exchanges, robot 1 is left out.
-    sw = SurvivalWorld(WorldConfig(n_robots=3, n_packs=0), SurvivalConfig(mate_angle_deg=60))
+    # robots 1 and 2 do not face each other. The nearer pair exchanges (a one-step exchange),
+    # robot 1 is left out.
+    cfg = SurvivalConfig(mate_angle_deg=60, mate_consecutive_steps=1)
+    sw = SurvivalWorld(WorldConfig(n_robots=3, n_packs=0), cfg)
     w = sw.world
     w.set_robot_pose(0, 0.0, 0.0, 0.0)
     w.set_robot_pose(1, 0.45, 0.17, math.pi)
@@ -270,7 +274,9 @@ def test_a_robot_mates_with_one_partner_per_step():
 
 
 def test_mate_reflex_turns_both_partners_away_after_an_exchange():
-    cfg = SurvivalConfig(mate_reflex=True, reflex_min_steps=4, reflex_max_steps=8)  # 0.8-1.6 s
+    cfg = SurvivalConfig(
+        mate_reflex=True, reflex_min_steps=4, reflex_max_steps=8, mate_consecutive_steps=1
+    )  # a one-step exchange, then a 0.8-1.6 s reflex
     sw = SurvivalWorld(WorldConfig(n_robots=2, n_packs=0), cfg, np.random.default_rng(3))
     along = math.sqrt(0.3**2 - 0.04**2) + 2 * PORT_FORWARD
     sw.world.set_robot_pose(0, -along / 2, 0.0, 0.0)
@@ -286,7 +292,10 @@ def test_mate_reflex_turns_both_partners_away_after_an_exchange():
     turning = int(sw.reflex_steps_left.min())
     assert mate_steps(sw, (True, True), turning) == []
     # Without the rule the pair exchanges again on the very next step.
-    plain = SurvivalWorld(WorldConfig(n_robots=2, n_packs=0), SurvivalConfig(mate_reflex=False))
+    plain = SurvivalWorld(
+        WorldConfig(n_robots=2, n_packs=0),
+        SurvivalConfig(mate_reflex=False, mate_consecutive_steps=1),
+    )
     plain.world.set_robot_pose(0, -along / 2, 0.0, 0.0)
     plain.world.set_robot_pose(1, along / 2, 0.0, math.pi)
     mujoco.mj_forward(plain.world.model, plain.world.data)

@@ -161,7 +161,10 @@ def test_survival_mating_rewards_both_partners_and_led_is_observed():
     mate = np.array([1.0, 1.0, 1.0, 0.0])
     action = wheels_action(env, np.zeros((4, 2)), mate=mate)
     action["led"] = np.array([1.0, 0.0, 0.0, 0.0])
-    # Observed at the end of the exchange's step, before the partners turn away (mate_reflex).
+    # The IR exchange takes 2 steps (mate_consecutive_steps); observed at the end of its second
+    # step, before the partners turn away (mate_reflex).
+    ts = env.step(action)
+    assert np.array_equal(ts.reward, np.zeros(4))
     ts = env.step(action)
     assert np.array_equal(ts.reward, [1.0, 1.0, 0.0, 0.0])
     assert ts.observation["led_on"].tolist() == [1.0, 0.0, 0.0, 0.0]
@@ -224,6 +227,8 @@ def test_mate_starts_in_view_with_leds_on_and_rewards_both_at_the_exchange():
     assert ts.observation["led_on"].tolist() == [1.0, 1.0]
     gap = math.sqrt(0.3**2 - 0.04**2) + 2 * 0.111
     place(env, {0: (-gap / 2, 0.2, 0.0), 1: (gap / 2, 0.2, math.pi)})
+    ts = env.step(wheels_action(env, np.zeros((2, 2))))  # the 2-step exchange's first step
+    assert ts.reward.tolist() == [0.0, 0.0] and not ts.last()
     ts = env.step(wheels_action(env, np.zeros((2, 2))))
     assert ts.reward.tolist() == [1.0, 1.0]
     assert ts.last() and ts.discount == 0.0
