@@ -4,15 +4,21 @@ The paper fixes Tables 1 and 2 but leaves open the quantities that set how often
 capture a battery or mate: the control step's length, the post-recharge reflex, the IR
 exchange's duration, the mating geometry, the pack layout, what counts as a capture, and
 whether energy decays while docked. Each study below is one ``cyber-rodent sweep`` over a grid
-of one setting (the default value is the ``baseline`` sweep, run once), for EE and CE, on the
-calibration seeds 100 and up: a choice is never tuned on a seed the results then report
-(seeds 0-19).
+of one setting (its reference value is the round's ``baseline`` sweep, run once), for EE and
+CE, on the calibration seeds 100 and up: a choice is never tuned on a seed the results then
+report (seeds 0-19).
+
+The study ran in two rounds. The first varied the unknowns that set the rates most around the
+first defaults (:data:`FIRST_DEFAULTS`, a 0.1 s step) and tried the combinations that became
+today's defaults; the second varies every unknown, one at a time, around today's defaults. A
+first-round sweep runs with the code of the first defaults (``--code``, a checkout of it), a
+second-round one with this checkout.
 
 Each run contributes its mean over its last ``--window`` generations; the table gives, per
 study, value and method, the mean and standard deviation over seeds (:mod:`evolution.grid`).
 
-    .venv/bin/python -m benchmarks.calibration_study --run      # the sweeps (hours; resumable)
-    .venv/bin/python -m benchmarks.calibration_study            # table and figure from them
+    .venv/bin/python -m benchmarks.calibration_study --run --round 2   # the sweeps (hours)
+    .venv/bin/python -m benchmarks.calibration_study                   # tables and figures
 """
 
 from __future__ import annotations
@@ -43,9 +49,21 @@ SEEDS = "100-101"
 GENERATIONS = 30
 
 
+#: The first round's reference: the defaults before the study (every other setting as today's).
+FIRST_DEFAULTS: dict[str, Any] = {
+    "survival.control_dt": 0.1,
+    "survival.reflex_min_steps": 4,
+    "survival.reflex_max_steps": 8,
+    "survival.mate_reflex": False,
+    "survival.mate_consecutive_steps": 1,
+}
+#: Where each round's sweeps go, under ``--out``.
+ROUND_DIRS = {1: ".", 2: "final"}
+
+
 @dataclass(frozen=True)
 class Study:
-    """One unknown: a sweep over a grid of one setting (or the defaults for the baseline).
+    """One unknown: a sweep over a grid of one setting (or the defaults for a baseline).
 
     A combination (``sets``, and ``behaviours`` trained under the combination's control step)
     is compared with the paper, not with the baseline: it changes more than one setting.
@@ -57,30 +75,39 @@ class Study:
     methods: str = "ee,ce"
     sets: tuple[str, ...] = ()
     behaviours: str | None = None
+    round: int = 2
 
     @property
     def single(self) -> bool:
-        """Does the study vary one setting around the defaults?"""
-        return not self.sets
+        """Does the study vary one setting around its round's defaults?"""
+        return not self.sets and bool(self.grid)
+
+    def directory(self, out: Path) -> Path:
+        """The study's sweep directory."""
+        return (out / ROUND_DIRS[self.round] / self.name).resolve()
 
 
-#: Behaviours trained under a 0.2 s control step, for the combinations that use one:
-#: ``cyber-rodent train-behaviours --set survival.control_dt=0.2 --seed 0 --out DIR``.
+#: Behaviours trained under a 0.2 s control step, for the first round's combinations:
+#: ``cyber-rodent train-behaviours --set survival.control_dt=0.2 --seed 0 --out DIR`` with the
+#: first defaults' code.
 BEHAVIOURS_DT02 = "behaviours_dt0.2"
 _DT02 = ("survival.control_dt=0.2",)
 
 
 STUDIES = (
-    Study("baseline", "the defaults"),
-    Study("ir_exchange", "IR exchange duration", ("survival.mate_consecutive_steps=2,3",)),
-    Study("mate_reflex", "reflex after mating", ("survival.mate_reflex=true",)),
-    Study("control_step", "control step length", ("survival.control_dt=0.15,0.2",)),
+    # first round: around FIRST_DEFAULTS, then the combinations that became today's defaults
+    Study("baseline", "the first defaults", round=1),
+    Study("ir_exchange", "IR exchange duration", ("survival.mate_consecutive_steps=2,3",),
+          round=1),  # fmt: skip
+    Study("mate_reflex", "reflex after mating", ("survival.mate_reflex=true",), round=1),
+    Study("control_step", "control step length", ("survival.control_dt=0.15,0.2",), round=1),
     Study(
         "candidate",
         "0.2 s step, retrained behaviours, reflex after mating",
         ("survival.mate_reflex=true",),
         sets=_DT02,
         behaviours=BEHAVIOURS_DT02,
+        round=1,
     ),
     Study(
         "candidate2",
@@ -89,14 +116,17 @@ STUDIES = (
         sets=(*_DT02, "survival.mate_reflex=true", "survival.reflex_min_steps=2",
               "survival.reflex_max_steps=4"),  # fmt: skip
         behaviours=BEHAVIOURS_DT02,
+        round=1,
     ),
+    # second round: every other unknown, one at a time, around today's defaults
+    Study("baseline", "today's defaults"),
     Study("mate_distance", "mating distance", ("survival.mate_distance=0.25,0.5",)),
     Study("mate_angle", "mating angle", ("survival.mate_angle_deg=10,25",)),
-    Study("reflex_length", "reflex length (max steps)", ("survival.reflex_max_steps=4,12",)),
+    Study("reflex_length", "reflex length (max steps)", ("survival.reflex_max_steps=3,6",)),
+    Study("reflex_speed", "reflex speed", ("survival.reflex_wheel_speed=0.15,0.6",)),
     Study("capture_rule", "what counts as a capture", ("survival.capture_rule=recharge",)),
     Study("pack_gap", "pack spacing", ("world.pack_gap=0.6,0.9",)),
     Study("decay_docked", "decay while docked", ("survival.decay_while_recharging=true",)),
-    Study("reflex_speed", "reflex speed", ("survival.reflex_wheel_speed=0.15,0.6",)),
     Study("ce_tournament", "CE tournament size", ("genetic.tournament_size=4,8",), "ce"),
     Study(
         "ce_dead_fitness",
@@ -107,11 +137,19 @@ STUDIES = (
 )
 
 
+def reference(round_: int) -> dict[str, Any]:
+    """The default of every setting in a round: today's, or :data:`FIRST_DEFAULTS` over them."""
+    values = {key: field.default for key, field in settings().items()}
+    if round_ == 1:
+        values.update(FIRST_DEFAULTS)
+    return values
+
+
 def sweep_command(study: Study, out: Path) -> list[str]:
     """The ``cyber-rodent sweep`` command line of one study."""
     command = [
         "cyber-rodent", "sweep", "--methods", study.methods, "--seeds", SEEDS,
-        "--generations", str(GENERATIONS), "--workers", "2", "--out", str(out / study.name),
+        "--generations", str(GENERATIONS), "--workers", "2", "--out", str(study.directory(out)),
     ]  # fmt: skip
     for axis in study.grid:
         command += ["--grid", axis]
@@ -120,9 +158,9 @@ def sweep_command(study: Study, out: Path) -> list[str]:
     return command
 
 
-def run_studies(studies: Sequence[Study], out: Path) -> None:
-    """Run (or resume) every study's sweep, one after the other (training the behaviours a
-    combination needs first)."""
+def run_studies(studies: Sequence[Study], out: Path, code: Path) -> None:
+    """Run (or resume) every study's sweep, one after the other, with the package in ``code``
+    (training the behaviours a combination needs first)."""
     cli = [sys.executable, "-m", "cyber_rodent.cli"]
     for study in studies:
         env = dict(os.environ)
@@ -131,13 +169,13 @@ def run_studies(studies: Sequence[Study], out: Path) -> None:
             if not (values / "mate.npz").exists():
                 train = ["train-behaviours", "--set", _DT02[0], "--seed", "0", "--out", str(values)]
                 print("cyber-rodent", " ".join(train), flush=True)
-                subprocess.run([*cli, *train, "--no-progress"], check=True)
+                subprocess.run([*cli, *train, "--no-progress"], check=True, cwd=code)
             env["CYBER_RODENT_BEHAVIOUR_VALUES"] = str(values)
         command = sweep_command(study, out)
-        if (out / study.name / "sweep.json").exists():
+        if (study.directory(out) / "sweep.json").exists():
             command.append("--resume")
         print(" ".join(command), flush=True)
-        subprocess.run([*cli, *command[1:], "--no-progress"], check=True, env=env)
+        subprocess.run([*cli, *command[1:], "--no-progress"], check=True, env=env, cwd=code)
 
 
 #: Two matings of one robot pair this close (control steps) are a chain: the next agents of two
@@ -181,10 +219,10 @@ def _cells_of(root: Path) -> list[str]:
 
 
 def _rates(out: Path, window: int) -> pd.DataFrame:
-    """:func:`event_rates` averaged over seeds, per study, cell and method."""
+    """:func:`event_rates` averaged over seeds, per round, study, cell and method."""
     rows = []
     for study in STUDIES:
-        root = out / study.name
+        root = study.directory(out)
         if not root.is_dir():
             continue
         for name in _cells_of(root):
@@ -193,17 +231,21 @@ def _rates(out: Path, window: int) -> pd.DataFrame:
                 if (run / "events.csv").exists():
                     method = run.name.partition("-")[0]
                     rates = event_rates(run, window)
-                    rows.append({"study": study.name, "cell": name, "method": method, **rates})
-    return pd.DataFrame(rows).groupby(["study", "cell", "method"], as_index=False).mean()
+                    rows.append({"round": study.round, "study": study.name, "cell": name,
+                                 "method": method, **rates})  # fmt: skip
+    keys = ["round", "study", "cell", "method"]
+    if not rows:
+        return pd.DataFrame(columns=keys)
+    return pd.DataFrame(rows).groupby(keys, as_index=False).mean()
 
 
 def collect(out: Path, window: int, partial: bool = False) -> pd.DataFrame:
-    """One row per study, value and method (the baseline's row under every single study's
-    key); only cells whose runs all reached the last generation, unless ``partial``."""
-    defaults = settings()
+    """One row per round, study, value and method (a round's baseline row repeated under each
+    of its single studies' keys); only cells whose runs all reached the last generation,
+    unless ``partial``."""
     frames = []
     for study in STUDIES:
-        root = out / study.name
+        root = study.directory(out)
         if not root.is_dir():
             continue
         loaded: dict[str, tuple[Mapping[str, Any], dict[str, list[pd.DataFrame]]]]
@@ -218,37 +260,42 @@ def collect(out: Path, window: int, partial: bool = False) -> pd.DataFrame:
         if table.empty:
             continue
         table.insert(0, "study", study.name)
+        table.insert(0, "round", study.round)
         frames.append(table)
     if not frames:
         raise SystemExit(f"no finished calibration sweeps under {out}")
     rows = pd.concat(frames, ignore_index=True)
-    rows = rows.merge(_rates(out, window), on=["study", "cell", "method"], how="left")
+    rows = rows.merge(_rates(out, window), on=["round", "study", "cell", "method"], how="left")
     keys = [c for c in rows.columns if "." in c]
     rows["key"] = rows[keys].notna().idxmax(axis=1).where(rows[keys].notna().any(axis=1))
     rows["value"] = [
         row[row["key"]] if isinstance(row["key"], str) else math.nan for _, row in rows.iterrows()
     ]
     rows = rows.drop(columns=[*keys, "cell"])
-    baseline = rows[rows["study"] == "baseline"]
     expanded = [rows[rows["study"] != "baseline"]]
-    for study in STUDIES[1:]:  # the defaults are every single study's reference value
-        if not study.single or not (rows["study"] == study.name).any():
+    for study in STUDIES:  # a round's defaults are each of its single studies' reference value
+        in_round = rows[rows["round"] == study.round]
+        if not study.single or not (in_round["study"] == study.name).any():
             continue
         key = study.grid[0].partition("=")[0]
-        base = baseline[baseline["method"].isin(study.methods.split(","))].copy()
-        base["study"], base["key"], base["value"] = study.name, key, defaults[key].default
+        base = in_round[
+            (in_round["study"] == "baseline") & in_round["method"].isin(study.methods.split(","))
+        ].copy()
+        base["study"], base["key"], base["value"] = study.name, key, reference(study.round)[key]
         expanded.append(base)
     table = pd.concat(expanded, ignore_index=True)
-    single = {s.name for s in STUDIES if s.single}
+    single = {(s.round, s.name) for s in STUDIES if s.single}
     table["default"] = [
-        study in single and defaults[k].default == v
-        for study, k, v in zip(table["study"], table["key"], table["value"], strict=True)
+        (r, study) in single and reference(r)[k] == v
+        for r, study, k, v in zip(
+            table["round"], table["study"], table["key"], table["value"], strict=True
+        )
     ]
-    order = {s.name: i for i, s in enumerate(STUDIES)}
-    table["_order"] = table["study"].map(order)
+    order = {(s.round, s.name): i for i, s in enumerate(STUDIES)}
+    table["_order"] = [order[(r, n)] for r, n in zip(table["round"], table["study"], strict=True)]
     table["_value"] = table["value"].map(lambda v: float(v) if not isinstance(v, str) else 0.0)
     table = table.sort_values(["_order", "_value", "method"]).drop(columns=["_order", "_value"])
-    columns = ["study", "key", "value", "default", "method", "runs", "generations"]
+    columns = ["round", "study", "key", "value", "default", "method", "runs", "generations"]
     return table[columns + [c for c in table.columns if c not in columns]]
 
 
@@ -259,12 +306,17 @@ def _label(value: object) -> str:
     return str(value)
 
 
-def plot(table: pd.DataFrame, out_base: Path) -> list[Path]:
-    """One column per study: batteries, matings and completed agents against the value."""
+def plot(table: pd.DataFrame, round_: int, out_base: Path) -> list[Path]:
+    """One column per study of a round: batteries, matings and completed agents against the
+    value."""
     from evolution.figures import METHOD_STYLE, save_figure, styled_pyplot
 
     plt = styled_pyplot()
-    studies = [s for s in STUDIES[1:] if (table["study"] == s.name).any()]
+    table = table[table["round"] == round_]
+    studies = [
+        s for s in STUDIES
+        if s.round == round_ and s.name != "baseline" and (table["study"] == s.name).any()
+    ]  # fmt: skip
     rows = [("batteries", "batteries per life"), ("matings", "matings per life"),
             ("completed", "agents completing")]  # fmt: skip
     fig, axes = plt.subplots(
@@ -299,9 +351,10 @@ def plot(table: pd.DataFrame, out_base: Path) -> list[Path]:
         axes[-1][col].set_xlabel(study.grid[0].partition("=")[0].partition(".")[2], fontsize=8)
     axes[0][0].legend(frameon=False, fontsize=8)
     window = table["generations"].iloc[0]
+    around = "the first defaults" if round_ == 1 else "today's defaults"
     fig.suptitle(
-        f"Calibration (seeds {SEEDS}, mean ± std over seeds of each run's mean over generations "
-        f"{window}; * today's default; dotted: the paper's EE and CE)",
+        f"Calibration around {around} (seeds {SEEDS}, mean ± std over seeds of each run's mean "
+        f"over generations {window}; * the round's default; dotted: the paper's EE and CE)",
         fontsize=10,
     )
     fig.tight_layout()
@@ -312,21 +365,33 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("runs/calibration"))
     parser.add_argument("--run", action="store_true", help="run (or resume) the sweeps first")
-    parser.add_argument("--only", default=None, help="comma list of study names to run")
+    parser.add_argument("--round", type=int, choices=(1, 2), default=2, help="the round to run")
+    parser.add_argument("--only", default=None, help="comma list of the round's studies to run")
+    parser.add_argument(
+        "--code", type=Path, default=Path("."),
+        help="checkout whose package runs the sweeps (round 1: the first defaults' commit)",
+    )  # fmt: skip
     parser.add_argument("--window", type=int, default=10, help="final generations per run")
     parser.add_argument(
         "--partial", action="store_true", help="also cells whose runs are still going"
     )
     parser.add_argument("--table", type=Path, default=Path("results/calibration.csv"))
-    parser.add_argument("--figure", type=Path, default=Path("docs/images/calibration"))
+    parser.add_argument(
+        "--figure", type=Path, default=Path("docs/images/calibration"),
+        help="figure base name of round 2; round 1's adds _first",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     if args.run:
-        chosen = args.only.split(",") if args.only else [s.name for s in STUDIES]
-        run_studies([s for s in STUDIES if s.name in chosen], args.out)
+        mine = [s for s in STUDIES if s.round == args.round]
+        chosen = args.only.split(",") if args.only else [s.name for s in mine]
+        run_studies([s for s in mine if s.name in chosen], args.out, args.code.resolve())
     table = collect(args.out, args.window, args.partial)
     args.table.parent.mkdir(parents=True, exist_ok=True)
     table.to_csv(args.table, index=False, float_format="%.4g")
-    paths = plot(table, args.figure)
+    paths = []
+    for round_ in sorted(set(table["round"])):
+        base = args.figure.with_name(args.figure.name + ("_first" if round_ == 1 else ""))
+        paths += plot(table, round_, base)
     with pd.option_context("display.width", 200, "display.max_rows", 200):
         print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     print("wrote", args.table, *paths)
