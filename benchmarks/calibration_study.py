@@ -240,8 +240,8 @@ def _rates(out: Path, window: int) -> pd.DataFrame:
 
 
 def collect(out: Path, window: int, partial: bool = False) -> pd.DataFrame:
-    """One row per round, study, value and method (a round's baseline row repeated under each
-    of its single studies' keys); only cells whose runs all reached the last generation,
+    """One row per round, study, value and method (a round's baseline rows, and again under
+    each of its single studies' keys); only cells whose runs all reached the last generation,
     unless ``partial``."""
     frames = []
     for study in STUDIES:
@@ -272,7 +272,7 @@ def collect(out: Path, window: int, partial: bool = False) -> pd.DataFrame:
         row[row["key"]] if isinstance(row["key"], str) else math.nan for _, row in rows.iterrows()
     ]
     rows = rows.drop(columns=[*keys, "cell"])
-    expanded = [rows[rows["study"] != "baseline"]]
+    expanded = [rows]
     for study in STUDIES:  # a round's defaults are each of its single studies' reference value
         in_round = rows[rows["round"] == study.round]
         if not study.single or not (in_round["study"] == study.name).any():
@@ -286,7 +286,7 @@ def collect(out: Path, window: int, partial: bool = False) -> pd.DataFrame:
     table = pd.concat(expanded, ignore_index=True)
     single = {(s.round, s.name) for s in STUDIES if s.single}
     table["default"] = [
-        (r, study) in single and reference(r)[k] == v
+        study == "baseline" or ((r, study) in single and reference(r)[k] == v)
         for r, study, k, v in zip(
             table["round"], table["study"], table["key"], table["value"], strict=True
         )
@@ -317,6 +317,8 @@ def plot(table: pd.DataFrame, round_: int, out_base: Path) -> list[Path]:
         s for s in STUDIES
         if s.round == round_ and s.name != "baseline" and (table["study"] == s.name).any()
     ]  # fmt: skip
+    if not studies:
+        return []
     rows = [("batteries", "batteries per life"), ("matings", "matings per life"),
             ("completed", "agents completing")]  # fmt: skip
     fig, axes = plt.subplots(
