@@ -44,7 +44,9 @@ Every episode draws its placement from its own generator, derived from ``(seed, 
 two policies evaluated with one seed see the same starts (a paired comparison), and a resumed
 training run continues exactly where it stopped.
 
-Rewards (per robot, per control step; ``γ`` is the learner's discount):
+Rewards (per robot, per control step; ``γ`` is the learner's discount; defined, with
+:class:`EpisodeConfig` and :func:`episode_rules`, in :mod:`cyber_rodent.tasks.rewards`, which the
+Gymnasium environments share):
 
 * **Forage**: ``goal_reward`` (1) at the step the robot docks (terminal), minus ``step_cost``
   (0.02) on every step, plus the potential-based shaping term ``γ Φ(s') − Φ(s)`` with
@@ -92,89 +94,23 @@ from cyber_rodent.profiles import (
     randomised,
 )
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
-from cyber_rodent.validation import integer, number, validate_fields
+from cyber_rodent.tasks.rewards import (
+    COVERAGE_CELL,
+    EpisodeConfig,
+    approach_reward,
+    coverage_cells,
+    episode_rules,
+    search_reward,
+    shaping_reward,
+)
 from cyber_rodent.vision import CameraConfig, make_provider
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 from cyber_rodent.world import World, WorldConfig
-
-#: Robots never die in a behaviour episode (energy is not part of any behaviour's task).
-_ENDLESS_ENERGY = 1e6
-#: Cell side (m) of the grid on which Search's covered area is counted.
-COVERAGE_CELL = 0.1
-_FIELD_HALF = 1.15
-
-
-@dataclass(frozen=True)
-class EpisodeConfig:
-    """Settings of behaviour episodes (training and evaluation).
-
-    Attributes:
-        max_steps: control steps after which an episode is cut (the issue's budget: 100).
-        goal_reward: reward of Forage's docking and Mate's IR exchange, ≥ 0.
-        step_cost: reward subtracted on every step of Forage and Mate, ≥ 0.
-        shaping: scale of the distance shaping of Forage and Mate (0 disables it), ≥ 0.
-        gamma: discount used in the shaping term; must equal the learner's ``gamma`` for the
-            shaping to be policy-invariant.
-        reference_speed: Search's forward speed (m/s) that earns the full progress reward.
-        collision_penalty: Search's reward subtracted per step in contact, ≥ 0.
-        max_start_draws: placements drawn for a start condition before giving up.
-    """
-
-    max_steps: int = integer(100, 1, 1_000_000)
-    goal_reward: float = number(1.0, 0.0)
-    step_cost: float = number(0.02, 0.0)
-    shaping: float = number(1.0, 0.0)
-    gamma: float = number(0.98, 0.0, 1.0)
-    reference_speed: float = number(0.5, 0.0, 1.3, low_open=True)
-    collision_penalty: float = number(3.0, 0.0)
-    max_start_draws: int = integer(500, 1)
-
-    def __post_init__(self) -> None:
-        validate_fields(self)
-
-
-def episode_rules(survival: SurvivalConfig | None = None) -> SurvivalConfig:
-    """The survival rules of a behaviour episode: ``survival`` (default: the paper's) with endless
-    energy.
-
-    Raises:
-        ValueError: ``survival`` is not a ``SurvivalConfig`` (or None).
-    """
-    if survival is None:
-        survival = SurvivalConfig()
-    if not isinstance(survival, SurvivalConfig):
-        raise ValueError(
-            f"survival: must be a SurvivalConfig or None, got {type(survival).__name__}"
-        )
-    return dataclasses.replace(
-        survival, initial_energy=_ENDLESS_ENERGY, max_energy=_ENDLESS_ENERGY
-    )
 
 
 def episode_rng(seed: int, episode: int) -> np.random.Generator:
     """The placement generator of episode ``episode`` of a run with ``seed``."""
     return np.random.default_rng(np.random.SeedSequence([seed, episode, 0x5EED]))
-
-
-def shaping_reward(gamma: float, scale: float, d_before: float, d_after: float) -> float:
-    """Potential-based shaping ``γ Φ(s') − Φ(s)`` with ``Φ = −scale · d``.
-
-    Example: γ = 0.98, scale 1, the pack's normalised distance goes from 0.30 to 0.28:
-    ``0.98 · (−0.28) − (−0.30) = 0.0256``.
-    """
-    return gamma * (-scale * d_after) + scale * d_before
-
-
-def search_reward(progress: float, collided: bool, reference_step: float, penalty: float) -> float:
-    """Search's step reward: ``clip(progress / reference_step, −1, 1) − penalty · collided``.
-
-    Args:
-        progress: m moved along the heading at the start of the step.
-        collided: the body touches an obstacle at the end of the step.
-        reference_step: ``reference_speed · control_dt``, m.
-        penalty: the collision penalty.
-    """
-    return min(1.0, max(-1.0, progress / reference_step)) - (penalty if collided else 0.0)
 
 
 @dataclass
@@ -324,11 +260,7 @@ class BehaviourEpisode:
                 cfg.collision_penalty,
             )
         else:
-            d_after = np.zeros(k) if terminal else states[:, 1]
-            rewards[:] = cfg.gamma * (-cfg.shaping * d_after) + cfg.shaping * self._distance
-            rewards -= cfg.step_cost
-            if terminal:
-                rewards += cfg.goal_reward
+            rewards[:] = approach_reward(cfg, self._distance, states[:, 1], terminal)
             self._distance[:] = states[:, 1]
         return StepResult(states, rewards, terminal, self._collided[:k].copy())
 
@@ -387,17 +319,20 @@ class BehaviourEpisode:
         return True
 
 
-def coverage_cells(positions: np.ndarray, cell: float = COVERAGE_CELL) -> int:
-    """Number of distinct ``cell`` × ``cell`` squares of the field visited by ``positions``.
-
-    Args:
-        positions: (steps, 2) x, y of the robot's centre, m.
-        cell: side of a square, m.
-    """
-    idx = np.floor((np.asarray(positions) + _FIELD_HALF) / cell).astype(np.int64)
-    return int(np.unique(idx[:, 0] * 10_000 + idx[:, 1]).size)
-
-
 def random_commands(rng: np.random.Generator, k: int) -> np.ndarray:
     """Uniformly random wheel commands (the random baseline)."""
     return rng.integers(N_COMMANDS, size=k)
+
+
+__all__ = [
+    "COVERAGE_CELL",
+    "BehaviourEpisode",
+    "EpisodeConfig",
+    "StepResult",
+    "coverage_cells",
+    "episode_rng",
+    "episode_rules",
+    "random_commands",
+    "search_reward",
+    "shaping_reward",
+]

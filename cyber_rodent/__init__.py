@@ -9,3 +9,14 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 __version__ = "0.2.0"
+
+# Gymnasium ids (cyber_rodent/gym_env.py). Entry-point strings: registering imports neither the
+# environment module nor mujoco; gymnasium.make imports them.
+from gymnasium.envs.registration import register as _register  # noqa: E402
+
+for _task in ("Forage", "Mate", "Search", "Survival"):
+    _register(
+        id=f"CyberRodent/{_task}-v0",
+        entry_point="cyber_rodent.gym_env:CyberRodentEnv",
+        kwargs={"task": _task.lower()},
+    )

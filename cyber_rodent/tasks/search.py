@@ -8,6 +8,7 @@ import numpy as np
 from dm_control.mjcf import Physics
 
 from cyber_rodent.tasks.base import CyberRodentTask
+from cyber_rodent.tasks.rewards import search_reward
 
 
 class Search(CyberRodentTask):
@@ -25,7 +26,9 @@ class Search(CyberRodentTask):
     ``d`` is the displacement of the robot's centre along its heading at the start of the step
     and ``collided`` is 1 when its body touches a wall, a pack or a robot at the end of the
     step. Driving straight at ``reference_speed`` in free space earns 1 per step; spinning in
-    place earns 0; pushing against a wall earns at most ``-collision_penalty``.
+    place earns 0; pushing against a wall earns at most ``-collision_penalty``. The rule is the
+    Search behaviour's training reward (:func:`~cyber_rodent.tasks.rewards.search_reward`), whose
+    episodes use a penalty of 3.
 
     Episode: ``episode_steps`` (default 100), cut with discount 1; ends with discount 0 if the
     robot's energy runs out.
@@ -77,6 +80,8 @@ class Search(CyberRodentTask):
         self.survival.collisions(out=self._collided)
 
     def get_reward(self, physics: Physics | None = None) -> np.ndarray:
-        dt = self.survival.config.control_dt
-        progress = np.clip(self._progress / (self.reference_speed * dt), -1.0, 1.0)
-        return np.array([progress - self.collision_penalty * float(self._collided[0])])
+        reference_step = self.reference_speed * self.survival.config.control_dt
+        reward = search_reward(
+            float(self._progress), bool(self._collided[0]), reference_step, self.collision_penalty
+        )
+        return np.array([reward])

@@ -1,0 +1,636 @@
+"""Gymnasium environments of the Cyber Rodent: one robot, a flat observation, a scalar reward.
+
+``import cyber_rodent`` registers four ids (entry-point strings, so registering imports nothing
+heavy); each builds a :class:`CyberRodentEnv`::
+
+    import gymnasium as gym
+    import cyber_rodent  # noqa: F401  (registers the ids)
+
+    env = gym.make("CyberRodent/Forage-v0", action="discrete", reward="shaped")
+    obs, info = env.reset(seed=0)
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+
+The dm-control tasks (:mod:`cyber_rodent.tasks`) return per-robot arrays and take dict actions;
+these environments give learners such as Stable-Baselines3 what they consume. Like the behaviour
+episodes (``behaviours.episodes``, where the shipped behaviours were trained), they step a
+:class:`~cyber_rodent.survival.SurvivalWorld` one control step (``control_dt``, 0.2 s) at a time
+on its lean path, with the geometric vision by default.
+
+Tasks (the settings of the behaviour episodes; Survival is the survival world with one robot):
+
+* ``CyberRodent/Forage-v0``: 1 robot, 5 packs; the start is re-drawn until the robot sees a
+  pack. Terminates with success when the robot docks onto a pack.
+* ``CyberRodent/Mate-v0``: 2 robots, no packs, both LEDs on, both signalling Mate; the start is
+  re-drawn until each sees the other's LED or face. Terminates with success at the first IR
+  exchange. The learner is robot 0; robot 1, the partner, is moved by ``partner_policy``.
+* ``CyberRodent/Search-v0``: 4 robots (3 parked: wheels stopped, LEDs off), 5 packs; any start.
+  Never terminates; a docking is released at once (recharging is not Search's job).
+* ``CyberRodent/Survival-v0``: 1 robot, 5 packs and the survival world's rules (energy 100,
+  capped at 200, −1 per step, +5 per recharge step, at most 40 steps per docking, the rotation
+  reflex after it). Terminates when the energy reaches 0 (death).
+
+Forage, Mate and Search use the behaviour episodes' rules (:func:`~cyber_rodent.tasks.rewards.
+episode_rules`: endless energy, 1e6, so no robot dies) and are truncated after
+``episode.max_steps`` (100) control steps; Survival after 400 (one agent lifetime of the paper's
+simulation, as the dm-control ``Survival`` task).
+
+**The Mate partner.** The behaviours train Mate by self-play: both robots are learners acting on
+their own inputs with one shared action-value table (``behaviours.training``). Here robot 1 acts
+through ``partner_policy``, a callable that receives robot 1's own observation (the same layout
+as the learner's) and returns an action of this environment's action space; pass the policy
+being trained (for example ``lambda obs: model.predict(obs)[0]``) to train as the behaviours
+were. Without one the partner stands still, LED on, signalling Mate.
+
+Observation: ``Box((21,), float32)`` in raw physical units, names in
+``env.unwrapped.observation_names`` (units in ``observation_units``), the bounds in the space:
+
+=======================================  ============================  ========================
+name                                     range                         unit
+=======================================  ============================  ========================
+``range_front``                          [0, 1.0]                      m, IR range (saturates)
+``range_front_left30``, ``..._right30``  [0, 0.3]                      m
+``range_front_left60``, ``..._right60``  [0, 0.3]                      m
+``range_back``, ``range_left``,          [0, 0.3]                      m
+``range_right``
+``led_bearing``                          [−π, π]                       rad, + = left; 0 unseen
+``led_distance``                         [0, max_range (3.25)]         m; max_range unseen
+``led_visible``                          {0, 1}                        flag
+``face_bearing`` / ``_distance`` /       as the LED's                  nearest red face
+``_visible``
+``battery_bearing`` / ``_distance`` /    as the LED's                  nearest battery pack
+``_visible``
+``energy``                               [0, max_energy]               virtual energy (1e6 in
+                                                                       Forage, Mate, Search)
+``led_on``                               {0, 1}                        own LED
+``docked``                               {0, 1}                        docked and recharging
+``recharge_steps``                       [0, max_recharge_steps (40)]  control steps
+=======================================  ============================  ========================
+
+The range sensors are those of ``constants.RANGE_SENSORS`` in that order; the nearest LED, face
+and pack are the vision's (``camera.max_range`` is the field's diagonal by default).
+
+Actions:
+
+* ``action="discrete"``: ``Discrete(8)``, an index into the behaviours' command table
+  (:data:`cyber_rodent.commands.WHEEL_COMMANDS`: forward, forward_slow, arc_left, arc_right,
+  spin_left, spin_right, reverse, stop). Survival: ``MultiDiscrete([8, 2])``, the command and
+  the recharge decision (1 = keep recharging while docked, 0 = stop now).
+* ``action="continuous"``: ``Box((2,), float32)``, left and right wheel rim speeds in m/s within
+  ±``max_wheel_speed`` (default 1.0 m/s, inside the motor limit ``constants.TOP_SPEED`` = 1.3;
+  the fastest command drives 0.5). Survival adds the recharge decision in [−1, 1] (keep
+  recharging above 0), so the whole action lies in [−1, 1] as Gymnasium's and
+  Stable-Baselines3's checkers recommend. ``env.unwrapped.action_names`` names the entries.
+
+Rewards (a float per step):
+
+* ``reward="sparse"`` (default): the task's success as a reward. Forage: 1 at the docking; Mate:
+  1 at the IR exchange; Search: 1 each time the robot's centre enters a 10 cm cell of the field
+  it has not visited in this episode (the area-covered measure of the behaviour evaluation,
+  :func:`~cyber_rodent.tasks.rewards.coverage_cells`); Survival: 1 per captured battery.
+* ``reward="shaped"`` (Forage, Mate, Search): exactly the reward the behaviours were trained
+  with (:mod:`cyber_rodent.tasks.rewards`, the functions ``behaviours.episodes`` calls, with the
+  settings of ``episode``, an :class:`~cyber_rodent.tasks.rewards.EpisodeConfig`): goal reward,
+  step cost and distance shaping for Forage and Mate, forward progress minus a collision
+  penalty (3) for Search. With the default settings, geometric vision and the same placement, it
+  equals ``BehaviourEpisode``'s reward of robot 0 step by step (``tests/test_gym_env.py``).
+  Survival has no training reward and refuses it.
+
+Pixels: ``pixels=True`` makes the observation a ``Dict`` with ``"state"`` (the vector above) and
+``"pixels"``, robot 0's omni strip as the camera renders it (``Box(0, 255, (height,
+n_views · view_width, 3), uint8)``, 192 × 512 by default; :mod:`cyber_rodent.vision.rendering`);
+``masks=True`` adds ``"masks"``, its colour segmentation (same shape, channel c is 255 on the
+pixels of class c: LED, face, battery; :mod:`cyber_rodent.vision.segmentation`). The state part
+still comes from ``vision`` (geometric by default), so pixels never change the dynamics or the
+reward.
+
+``info`` holds ``steps`` (control steps so far) and, after a step, ``collided`` (robot 0's body
+touches a wall, a pack or a robot), and ``is_success`` (Forage, Mate), ``coverage_cells``
+(Search: cells visited) or ``captures`` (Survival: batteries captured so far).
+
+Rendering: ``render_mode="rgb_array"`` returns the top-down view of the field
+(:class:`cyber_rodent.render.FieldRenderer`, off-screen MuJoCo).
+
+Seeding: ``reset(seed=...)`` seeds ``env.np_random``, the one generator of the placement, the
+start re-draws and the rotation reflexes (vision noise, if configured, draws from a child of it);
+the same seed and actions give the same trajectory, bit for bit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, NamedTuple, SupportsFloat
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from cyber_rodent import constants as C
+from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
+from cyber_rodent.commands import COMMAND_SPEEDS, N_COMMANDS
+from cyber_rodent.render import FieldRenderer, check_image_size
+from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
+from cyber_rodent.tasks.rewards import (
+    EpisodeConfig,
+    approach_reward,
+    coverage_keys,
+    episode_rules,
+    search_reward,
+)
+from cyber_rodent.validation import check_boolean, check_choice, check_number
+from cyber_rodent.vision import (
+    BATTERY,
+    FACE,
+    LED,
+    PROVIDER_NAMES,
+    CameraConfig,
+    VisionFrame,
+    VisionNoise,
+    VisionProvider,
+    make_provider,
+    normalise_distance,
+)
+from cyber_rodent.world import World, WorldConfig
+
+if TYPE_CHECKING:
+    from cyber_rodent.vision.rendered import RenderedVision
+
+#: Task names, in the order of the registered ids.
+TASK_NAMES = ("forage", "mate", "search", "survival")
+ACTION_KINDS = ("discrete", "continuous")
+REWARD_KINDS = ("sparse", "shaped")
+#: (robots, packs) of each task's field.
+TASK_FIELDS = {"forage": (1, 5), "mate": (2, 0), "search": (4, 5), "survival": (1, 5)}
+#: Control steps of a Survival episode (one agent lifetime of the paper's simulation).
+SURVIVAL_STEPS = 400
+#: Default bound of the continuous wheel speeds, m/s.
+DEFAULT_MAX_WHEEL_SPEED = 1.0
+#: A switch entry of a continuous action, in [-1, 1], is on above this.
+SWITCH_ON = 0.0
+
+_TARGETS = (("led", LED), ("face", FACE), ("battery", BATTERY))
+#: Observation names in vector order (see the module docstring).
+OBSERVATION_NAMES: tuple[str, ...] = (
+    *(name for name, _, _ in C.RANGE_SENSORS),
+    *(f"{target}_{part}" for target, _ in _TARGETS for part in ("bearing", "distance", "visible")),
+    "energy",
+    "led_on",
+    "docked",
+    "recharge_steps",
+)
+OBSERVATION_UNITS: tuple[str, ...] = (
+    *("m",) * C.N_RANGE,
+    *("rad", "m", "flag") * len(_TARGETS),
+    "energy",
+    "flag",
+    "flag",
+    "control steps",
+)
+N_OBSERVATIONS = len(OBSERVATION_NAMES)
+
+Observation = np.ndarray | dict[str, np.ndarray]
+PartnerPolicy = Callable[[Observation], Any]
+
+
+class ObservationBounds(NamedTuple):
+    """Per-entry bounds of the flat observation (float32, :data:`OBSERVATION_NAMES` order)."""
+
+    low: np.ndarray
+    high: np.ndarray
+
+
+def observation_bounds(
+    range_max: np.ndarray, max_range: float, survival: SurvivalConfig
+) -> ObservationBounds:
+    """The bounds of one robot's observation.
+
+    Args:
+        range_max: (8,) each range sensor's range, m (``World.range_max[0]``).
+        max_range: the camera's range, m (an unseen target's distance).
+        survival: the rules (``max_energy``, ``max_recharge_steps``).
+    """
+    low = np.zeros(N_OBSERVATIONS)
+    high = np.ones(N_OBSERVATIONS)
+    high[: C.N_RANGE] = range_max
+    for k in range(len(_TARGETS)):
+        col = C.N_RANGE + 3 * k
+        low[col], high[col] = -math.pi, math.pi
+        high[col + 1] = max_range
+    high[OBSERVATION_NAMES.index("energy")] = survival.max_energy
+    high[OBSERVATION_NAMES.index("recharge_steps")] = survival.max_recharge_steps
+    return ObservationBounds(low.astype(np.float32), high.astype(np.float32))
+
+
+def robot_observations(
+    survival: SurvivalWorld, frame: VisionFrame, max_range: float
+) -> np.ndarray:
+    """(n_robots, :data:`N_OBSERVATIONS`) float32: every robot's observation, a fresh array.
+
+    An unseen target has bearing 0, distance ``max_range`` and visible 0, as in the dm-control
+    tasks (:mod:`cyber_rodent.tasks.base`).
+    """
+    world = survival.world
+    obs = np.empty((world.config.n_robots, N_OBSERVATIONS), dtype=np.float32)
+    obs[:, : C.N_RANGE] = world.range_readings()
+    for k, (_, cls) in enumerate(_TARGETS):
+        col = C.N_RANGE + 3 * k
+        visible = frame.visible[:, cls]
+        obs[:, col] = np.where(visible, frame.bearing[:, cls], 0.0)
+        obs[:, col + 1] = np.where(
+            visible, np.minimum(frame.distance[:, cls], max_range), max_range
+        )
+        obs[:, col + 2] = visible
+    col = C.N_RANGE + 3 * len(_TARGETS)
+    obs[:, col] = survival.energy
+    obs[:, col + 1] = world.led_on
+    obs[:, col + 2] = survival.docked
+    obs[:, col + 3] = survival.recharge_steps
+    return obs
+
+
+# --- actions -------------------------------------------------------------------------------------
+def action_space(kind: str, switches: tuple[str, ...], max_wheel_speed: float) -> spaces.Space[Any]:
+    """The action space of one robot: a wheel command, then on/off ``switches``.
+
+    Discrete: ``Discrete(N_COMMANDS)`` without switches, else ``MultiDiscrete([N_COMMANDS, 2,
+    ...])``. Continuous: ``Box`` of the two wheel speeds (m/s, ±``max_wheel_speed``), then one
+    entry in [-1, 1] per switch (on above :data:`SWITCH_ON`).
+    """
+    if kind == "discrete":
+        if not switches:
+            return spaces.Discrete(N_COMMANDS)
+        return spaces.MultiDiscrete([N_COMMANDS, *(2,) * len(switches)])
+    low = np.array([-max_wheel_speed] * 2 + [-1.0] * len(switches), dtype=np.float32)
+    high = np.array([max_wheel_speed] * 2 + [1.0] * len(switches), dtype=np.float32)
+    return spaces.Box(low, high, dtype=np.float32)
+
+
+def action_names(kind: str, switches: tuple[str, ...]) -> tuple[str, ...]:
+    """Names of the entries of an action of :func:`action_space`."""
+    wheels = ("command",) if kind == "discrete" else ("left_wheel", "right_wheel")
+    return (*wheels, *switches)
+
+
+def decode_action(
+    action: Any, space: spaces.Space[Any], wheels: np.ndarray, switches: np.ndarray
+) -> None:
+    """Write an action of ``space`` (:func:`action_space`) as wheel speeds and switch states.
+
+    Args:
+        action: the action.
+        space: its space.
+        wheels: (2,) out: left and right wheel rim speeds, m/s.
+        switches: (n_switches,) bool out.
+
+    Raises:
+        ValueError: the action is not in the space (the message says why).
+    """
+    if isinstance(space, spaces.Box):
+        value = np.asarray(action, dtype=np.float32)
+        if value.shape != space.shape:
+            raise ValueError(f"action must have shape {space.shape}, got {value.shape}")
+        if not np.isfinite(value).all():
+            raise ValueError("action must be finite (got NaN or inf)")
+        if (value < space.low).any() or (value > space.high).any():
+            raise ValueError(
+                f"action must lie in [{space.low.tolist()}, {space.high.tolist()}], "
+                f"got {value.tolist()}"
+            )
+        wheels[:] = value[:2]
+        np.greater(value[2:], SWITCH_ON, out=switches)
+        return
+    value = np.asarray(action)
+    nvec = space.nvec if isinstance(space, spaces.MultiDiscrete) else np.array([N_COMMANDS])
+    flat = value.reshape(-1)
+    if value.dtype.kind not in "iu" or flat.shape != nvec.shape:
+        raise ValueError(
+            f"action must be {'an integer' if flat.size == 1 else 'integers'} of {space}, "
+            f"got {action!r}"
+        )
+    if (flat < 0).any() or (flat >= nvec).any():
+        raise ValueError(f"action must lie in {space}, got {action!r}")
+    wheels[:] = COMMAND_SPEEDS[int(flat[0])]
+    switches[:] = flat[1:] != 0
+
+
+def check_max_wheel_speed(value: object) -> float:
+    """A continuous action's wheel-speed bound, m/s, in (0, ``TOP_SPEED``]."""
+    return check_number("max_wheel_speed", value, 0.0, C.TOP_SPEED, low_open=True)
+
+
+class CyberRodentEnv(gym.Env[Observation, Any]):
+    """One Cyber Rodent task as a Gymnasium environment (see the module docstring).
+
+    Args:
+        task: ``"forage"``, ``"mate"``, ``"search"`` or ``"survival"``.
+        action: ``"discrete"`` (the command table) or ``"continuous"`` (wheel speeds, m/s).
+        reward: ``"sparse"`` (the task's success) or ``"shaped"`` (the behaviours' training
+            reward; not for Survival).
+        pixels: add robot 0's omni strip to the observation (a ``Dict`` observation).
+        masks: also add the strip's colour-segmentation masks (needs ``pixels``).
+        vision: provider of the state's nearest LED, face and pack, ``"geometric"`` (as in
+            training) or ``"rendered"``.
+        camera: the omni camera (vision and pixels); default :class:`CameraConfig`.
+        survival: the survival rules (default: the paper's). Forage, Mate and Search replace
+            the energy fields by endless energy, as the behaviour episodes do.
+        episode: length, start draws and shaped-reward settings; default ``EpisodeConfig()``,
+            with ``max_steps=400`` for Survival.
+        partner_policy: Mate only: robot 1's policy, from its observation to an action of this
+            environment's action space (None: it stands still).
+        max_wheel_speed: bound of the continuous wheel speeds, m/s, in (0, 1.3].
+        render_mode: None or ``"rgb_array"`` (top-down view).
+        render_width, render_height: size of a rendered image, px.
+        backend: ``"numba"`` or ``"numpy"`` kernels (the same trajectories).
+
+    Attributes:
+        observation_names: the names of the state vector's entries.
+        observation_units: their units.
+        action_names: the names of an action's entries.
+        world, survival, vision: the simulation objects.
+        steps: control steps of the current episode.
+
+    Raises:
+        ValueError: for an unknown or invalid option (the message names it).
+    """
+
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 5}
+
+    def __init__(
+        self,
+        task: str = "forage",
+        *,
+        action: str = "discrete",
+        reward: str = "sparse",
+        pixels: bool = False,
+        masks: bool = False,
+        vision: str = "geometric",
+        camera: CameraConfig | None = None,
+        survival: SurvivalConfig | None = None,
+        episode: EpisodeConfig | None = None,
+        partner_policy: PartnerPolicy | None = None,
+        max_wheel_speed: float = DEFAULT_MAX_WHEEL_SPEED,
+        render_mode: str | None = None,
+        render_width: int = 480,
+        render_height: int = 480,
+        backend: Backend = DEFAULT_BACKEND,
+    ) -> None:
+        self.task = check_choice("task", task, TASK_NAMES)
+        self.action_kind = check_choice("action", action, ACTION_KINDS)
+        self.reward_kind = check_choice("reward", reward, REWARD_KINDS)
+        if task == "survival" and reward == "shaped":
+            raise ValueError(
+                "reward='shaped' is the behaviours' training reward of Forage, Mate and Search; "
+                "Survival has none (use reward='sparse')"
+            )
+        check_boolean("pixels", pixels)
+        check_boolean("masks", masks)
+        if masks and not pixels:
+            raise ValueError("masks=True needs pixels=True (the masks segment the pixels)")
+        check_choice("vision", vision, PROVIDER_NAMES)
+        if camera is not None and not isinstance(camera, CameraConfig):
+            raise ValueError(f"camera must be a CameraConfig, got {type(camera).__name__}")
+        if survival is not None and not isinstance(survival, SurvivalConfig):
+            raise ValueError(f"survival must be a SurvivalConfig, got {type(survival).__name__}")
+        if episode is not None and not isinstance(episode, EpisodeConfig):
+            raise ValueError(f"episode must be an EpisodeConfig, got {type(episode).__name__}")
+        if partner_policy is not None and (task != "mate" or not callable(partner_policy)):
+            raise ValueError("partner_policy must be a callable, and only Mate has a partner")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
+        check_image_size(render_width, render_height)
+        self._render_size = (render_width, render_height)
+        self.max_wheel_speed = check_max_wheel_speed(max_wheel_speed)
+        backend = check_backend(backend)
+        if episode is None:
+            steps = SURVIVAL_STEPS if task == "survival" else EpisodeConfig().max_steps
+            episode = EpisodeConfig(max_steps=steps)
+        self.episode = episode
+        self.partner_policy = partner_policy
+        rules = (survival or SurvivalConfig()) if task == "survival" else episode_rules(survival)
+
+        n_robots, n_packs = TASK_FIELDS[task]
+        fixed = np.random.default_rng(0)  # construction only; every reset re-draws
+        self.world = World(WorldConfig(n_robots=n_robots, n_packs=n_packs), fixed)
+        self.survival = SurvivalWorld(self.world, rules, fixed, backend=backend)
+        self.camera = camera or CameraConfig()
+        self.vision: VisionProvider = make_provider(
+            vision, self.world, self.camera, np.random.default_rng(0), backend=backend
+        )
+        self.max_range = float(self.camera.max_range)
+        self._pixels: RenderedVision | None = None
+        self._own_pixels = False
+        if pixels:
+            self._pixels, self._own_pixels = self._pixel_source(backend)
+        self._masks = masks
+        self.metadata = {**self.metadata, "render_fps": 1.0 / rules.control_dt}
+        self.dt = rules.control_dt
+
+        # Commands of every robot, as the behaviour episodes set them.
+        self._wheels = np.zeros((n_robots, 2))
+        self._led = np.zeros(n_robots, dtype=bool)
+        self._mate = np.zeros(n_robots, dtype=bool)
+        self._recharge = np.zeros(n_robots, dtype=bool)
+        if task == "mate":
+            self._led[:] = True
+            self._mate[:] = True
+        if task == "forage":
+            self._recharge[:] = True  # a docking ends the episode anyway
+        self._switches = np.zeros(1 if task == "survival" else 0, dtype=bool)
+        switches = ("recharge",) if task == "survival" else ()
+        self.action_space = action_space(self.action_kind, switches, self.max_wheel_speed)
+        self.action_names = action_names(self.action_kind, switches)
+
+        bounds = observation_bounds(self.world.range_max[0], self.max_range, rules)
+        self.observation_names = OBSERVATION_NAMES
+        self.observation_units = OBSERVATION_UNITS
+        state_space = spaces.Box(bounds.low, bounds.high, dtype=np.float32)
+        if pixels:
+            shape = (self.camera.height, self.camera.strip_width, 3)
+            image = {"pixels": spaces.Box(0, 255, shape, dtype=np.uint8)}
+            if masks:
+                image["masks"] = spaces.Box(0, 255, shape, dtype=np.uint8)
+            self.observation_space: spaces.Space[Any] = spaces.Dict(
+                {"state": state_space, **image}
+            )
+        else:
+            self.observation_space = state_space
+
+        self._collided = np.zeros(n_robots, dtype=bool)
+        self._frame = VisionFrame.empty(n_robots)
+        self._states = np.zeros((n_robots, N_OBSERVATIONS), dtype=np.float32)
+        self._distance = 1.0
+        self._visited: set[int] = set()
+        self._captures = 0
+        self.steps = 0
+        self._renderer: FieldRenderer | None = None
+        self._started = False
+
+    # --- gymnasium API ---------------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Observation, dict[str, Any]]:
+        """Start an episode from a placement drawn with ``np_random`` (seeded by ``seed``).
+
+        Raises:
+            RuntimeError: no placement met the task's start condition in
+                ``episode.max_start_draws`` draws.
+        """
+        super().reset(seed=seed)
+        rng = self.np_random
+        if self.camera.noise.enabled:
+            self.vision.rng = rng.spawn(1)[0]
+        for _ in range(self.episode.max_start_draws):
+            self.survival.reset(rng)
+            self.world.set_led(self._led)
+            frame = self.vision.observe()
+            if self._start_ok(frame):
+                break
+        else:
+            raise RuntimeError(
+                f"{self.task}: no start placement met the start condition in "
+                f"{self.episode.max_start_draws} draws"
+            )
+        self._frame = frame
+        self._wheels[:] = 0.0  # a robot no action moves stands still
+        self.steps = 0
+        self._captures = 0
+        self._started = True
+        self._distance = self._target_distance()
+        self._visited = {self._cell()}
+        self._look()
+        info = {"steps": 0}
+        return self._observation(0), info
+
+    def step(self, action: Any) -> tuple[Observation, SupportsFloat, bool, bool, dict[str, Any]]:
+        """One control step with robot 0's ``action`` (and the partner's, in Mate)."""
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        decode_action(action, self.action_space, self._wheels[0], self._switches)
+        if self.task == "survival":
+            self._recharge[0] = self._switches[0]
+        if self.partner_policy is not None:
+            partner = self.partner_policy(self._observation(1))
+            decode_action(partner, self.action_space, self._wheels[1], self._switches)
+        before = self.world.poses()[0]
+        events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
+        self.steps += 1
+        self._frame = self.vision.observe()
+        self.survival.collisions(out=self._collided)
+        task = self.task
+        terminated = False
+        if task == "forage":
+            terminated = bool(events.docked[0])
+        elif task == "mate":
+            terminated = bool(events.mate_partner[0] == 1)
+        elif task == "survival":
+            terminated = not bool(self.survival.alive[0])
+        elif self.survival.docked[0]:  # Search: recharging is not its job
+            self.survival.end_recharge(0, reflex=False)
+        captured = bool(events.captured[0])
+        self._captures += captured
+        reward = self._reward(before, terminated, captured)
+        truncated = not terminated and self.steps >= self.episode.max_steps
+        self._look()
+        info: dict[str, Any] = {"steps": self.steps, "collided": bool(self._collided[0])}
+        if task in ("forage", "mate"):
+            info["is_success"] = terminated
+        elif task == "search":
+            info["coverage_cells"] = len(self._visited)
+        else:
+            info["captures"] = self._captures
+        return self._observation(0), reward, terminated, truncated, info
+
+    def render(self) -> np.ndarray | None:
+        """The top-down view of the field, (render_height, render_width, 3) uint8."""
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            self._renderer = FieldRenderer(self.world, *self._render_size)
+        return self._renderer.top_down()
+
+    def close(self) -> None:
+        """Free the OpenGL contexts (idempotent)."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._pixels is not None and self._own_pixels:
+            self._pixels.close()
+        self._pixels = None
+        close = getattr(self.vision, "close", None)
+        if close is not None:  # the rendered provider's GL context
+            close()
+
+    # --- internals -------------------------------------------------------------------------------
+    def _pixel_source(self, backend: Backend) -> tuple[RenderedVision, bool]:
+        """The renderer of the omni strips: the vision itself if it renders, else its own one."""
+        from cyber_rodent.vision.rendered import RenderedVision  # needs OpenGL: import lazily
+
+        if isinstance(self.vision, RenderedVision):
+            return self.vision, False
+        camera = dataclasses.replace(self.camera, noise=VisionNoise())  # images only
+        return RenderedVision(self.world, camera, backend=backend), True
+
+    def _start_ok(self, frame: VisionFrame) -> bool:
+        if self.task == "forage":
+            return bool(frame.visible[0, BATTERY])
+        if self.task == "mate":
+            return bool((frame.visible[:2, LED] | frame.visible[:2, FACE]).all())
+        return True
+
+    def _target_distance(self) -> float:
+        """Robot 0's normalised distance of its target, the shaping's ``d`` (1 when unseen)."""
+        frame = self._frame
+        cls = BATTERY
+        if self.task == "mate":
+            cls = LED if frame.visible[0, LED] else FACE
+        d = normalise_distance(frame.distance[0, cls], frame.visible[0, cls])
+        return float(d)
+
+    def _cell(self) -> int:
+        return int(coverage_keys(self.world.poses()[:1, :2])[0])
+
+    def _reward(self, before: np.ndarray, terminated: bool, captured: bool) -> float:
+        task, cfg = self.task, self.episode
+        if task == "search":
+            x, y, _ = self.world.poses()[0]
+            cell = self._cell()
+            new_cell = cell not in self._visited
+            self._visited.add(cell)
+            if self.reward_kind == "sparse":
+                return 1.0 if new_cell else 0.0
+            progress = (x - before[0]) * math.cos(before[2]) + (y - before[1]) * math.sin(
+                before[2]
+            )
+            return search_reward(
+                progress,
+                bool(self._collided[0]),
+                cfg.reference_speed * self.dt,
+                cfg.collision_penalty,
+            )
+        if task == "survival":
+            return 1.0 if captured else 0.0
+        d_before, d_after = self._distance, self._target_distance()
+        self._distance = d_after
+        if self.reward_kind == "sparse":
+            return 1.0 if terminated else 0.0
+        return float(approach_reward(cfg, d_before, d_after, terminated))
+
+    def _look(self) -> None:
+        """Every robot's state vector, and the strips if the observation has pixels."""
+        self._states = robot_observations(self.survival, self._frame, self.max_range)
+        if self._pixels is not None and self._pixels is not self.vision:
+            self._pixels.observe()
+
+    def _observation(self, robot: int) -> Observation:
+        state: np.ndarray = self._states[robot].copy()
+        if self._pixels is None:
+            return state
+        strips, classes = self._pixels.last_strips, self._pixels.last_classes
+        assert strips is not None and classes is not None  # rendered by _look
+        obs = {"state": state, "pixels": strips[robot].copy()}
+        if self._masks:
+            masks = self._pixels.segmenter.masks_from_classes(classes[robot])
+            obs["masks"] = np.moveaxis(masks, 0, -1).copy()
+        return obs
