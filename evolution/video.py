@@ -1,30 +1,67 @@
-"""MP4 videos of a run, rendered off-screen: the field from above plus every robot's omni view.
+"""MP4 videos of a run, rendered off-screen, with a legend in every frame.
 
-Each frame shows, on the left, the top-down field with each robot's label, energy bar, active
-behaviour, LED and docking state, and a line between robots at the moment they exchange
-genomes; on the right, every robot's 360° omni strip (what its camera sees, straight ahead in
-the middle) under a status line (agent, generation, energy, behaviour). One frame per control
+A frame is tiled, with no empty area, from these panels (:func:`frame_layout`):
+
+- ``top`` (the default camera): the top-down field on the left; on the right, every robot's
+  360° omni strip (what its camera sees, straight ahead in the middle) under a status line
+  (agent, generation, energy, behaviour, LED), then the legend.
+- ``chase:N``: robot N's chase view (from behind and above) on the left; on the right, the
+  top-down field, robot N's status line and omni strip, then the legend.
+- ``omni:N``: robot N's status line and omni strip across the whole width; below, the top-down
+  field, and on the right the other robots' strips (when they fit) and the legend.
+
+The top-down field shows each robot's heading arrow and a label (``CRi`` = robot index i, its
+behaviour in the behaviour's colour, an energy bar); labels never overlap
+(:func:`cyber_rodent.render.place_labels`) and get a leader line when moved off their robot. A
+yellow ring marks a docked robot, a magenta line two robots at the moment they exchange genomes,
+and a white ring the robot that ``chase:N`` or ``omni:N`` follows. The legend says all this in
+the frame, under a line with the run, generation, time and control step. One frame per control
 step at 5 fps is real time (a control step is 0.2 s by default).
 
-The video continues the run from where the runner stands (for example, a run loaded from a
-checkpoint) by stepping it; the run directory on disk is never modified. The MP4 (H.264 via
-imageio-ffmpeg's bundled ffmpeg) is written to a temporary file and renamed when complete.
+The video continues the run from a checkpoint by stepping it (:func:`render_video`); the run
+directory on disk is never modified. The MP4 (H.264 via imageio-ffmpeg's bundled ffmpeg) is
+written to a temporary file and renamed when complete.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import cv2
 import numpy as np
 
 from cyber_rodent.atomic import atomic_output
-from cyber_rodent.render import FieldRenderer, check_writable_output
-from cyber_rodent.validation import integer, validate_fields
+from cyber_rodent.render import (
+    BACKGROUND_RGB,
+    ENERGY_RGB,
+    FONT,
+    HEADING_RGB,
+    LABEL_BOX_RGB,
+    LOW_ENERGY,
+    LOW_ENERGY_RGB,
+    OUTLINE_RGB,
+    RGB,
+    ROBOT_TOP_Z,
+    FieldRenderer,
+    RobotTag,
+    annotate_world,
+    check_writable_output,
+    draw_caption,
+    draw_heading,
+    draw_text,
+    fill_background,
+    text_scale,
+    text_thickness,
+)
+from cyber_rodent.validation import check_integer, integer, validate_fields
 from cyber_rodent.vision import CameraConfig
+from cyber_rodent.vision.projection import OmniProjection
 from cyber_rodent.vision.rendering import OmniRenderer
 
 if TYPE_CHECKING:
@@ -37,8 +74,133 @@ BEHAVIOUR_STYLE = {
     2: ("Search", (200, 200, 200)),
     -1: ("Recharge", (255, 200, 40)),
 }
-_FONT = cv2.FONT_HERSHEY_SIMPLEX
+DOCKED_RGB: RGB = (255, 200, 40)
+MATING_RGB: RGB = (255, 60, 200)
+FOLLOWED_RGB: RGB = (255, 255, 255)
+PACK_RGB: RGB = (30, 40, 235)
+LED_RGB: RGB = (40, 230, 40)
+STATUS_RGB: RGB = (40, 44, 54)
+LEGEND_RGB: RGB = (30, 33, 42)
 MAX_FRAMES = 100_000
+#: Frame size limits (px): a side column of at least MIN_COLUMN beside a field at least as wide
+#: as the frame is tall, so the top-down field is never cropped.
+MIN_HEIGHT, MAX_HEIGHT, MAX_WIDTH, MIN_COLUMN = 480, 2160, 3840, 256
+#: Least height of an omni strip in a frame (px), and of the chase layout's top-down field.
+MIN_STRIP, MIN_FIELD = 8, 120
+#: The smallest font scale used (status lines shrink to it when many robots need the room).
+SMALLEST_TEXT = 0.35
+#: Most a strip is stretched vertically to fill spare room (beyond, the legend's rows spread).
+MAX_STRETCH = 1.25
+CAMERAS = ("top", "chase", "omni")
+SIZE_RULE = (
+    f"even W and H, H in [{MIN_HEIGHT}, {MAX_HEIGHT}] and W in [H + {MIN_COLUMN}, {MAX_WIDTH}]"
+)
+
+
+# --- options ---------------------------------------------------------------------------------
+class Camera(NamedTuple):
+    """What a frame's main panel shows: ``kind`` in :data:`CAMERAS`, ``robot`` for chase/omni."""
+
+    kind: str
+    robot: int | None = None
+
+    def __str__(self) -> str:
+        return self.kind if self.robot is None else f"{self.kind}:{self.robot}"
+
+
+def parse_camera(text: str) -> Camera:
+    """``"top"``, ``"chase:N"`` or ``"omni:N"`` (N a robot index, checked by
+    :func:`check_camera_robot` once the robot count is known).
+
+    Raises:
+        ValueError: any other text.
+    """
+    match = re.fullmatch(r"\s*(top|chase|omni)\s*(?::\s*(\d+)\s*)?", str(text))
+    if match is None or (match.group(1) == "top") != (match.group(2) is None):
+        raise ValueError(
+            f"--camera must be top, chase:N or omni:N (N a robot index in [0, robots - 1]), "
+            f"got {text!r}"
+        )
+    robot = None if match.group(2) is None else int(match.group(2))
+    return Camera(match.group(1), robot)
+
+
+def check_camera_robot(camera: Camera, n_robots: int) -> None:
+    """Raise ValueError unless ``camera`` follows a robot that exists."""
+    if camera.robot is not None and not 0 <= camera.robot < n_robots:
+        raise ValueError(
+            f"--camera {camera.kind}:N needs a robot index N in [0, {n_robots - 1}] (the run "
+            f"has {n_robots} robots), got {camera}"
+        )
+
+
+def check_frame_size(width: object, height: object) -> tuple[int, int]:
+    """(width, height) if a frame of that size can be laid out; else ValueError naming --size."""
+    if (
+        isinstance(width, int | np.integer) and isinstance(height, int | np.integer)
+        and not isinstance(width, bool) and not isinstance(height, bool)
+        and width % 2 == 0 and height % 2 == 0 and MIN_HEIGHT <= height <= MAX_HEIGHT
+        and height + MIN_COLUMN <= width <= MAX_WIDTH
+    ):  # fmt: skip
+        return int(width), int(height)
+    raise ValueError(f"--size must be WxH with {SIZE_RULE}, got {width}x{height}")
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``"1280x720"`` → (1280, 720), checked by :func:`check_frame_size`."""
+    match = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", str(text))
+    if match is None:
+        raise ValueError(f"--size must be WxH with {SIZE_RULE}, got {text!r}")
+    return check_frame_size(int(match.group(1)), int(match.group(2)))
+
+
+def parse_integer_option(name: str, text: str, low: int, high: float) -> int:
+    """An integer option given as text, in [low, high], with the one-line rule message."""
+    try:
+        value: object = int(str(text).strip())
+    except ValueError:
+        value = text
+    return check_integer(name, value, low, high)
+
+
+def start_checkpoint(run_dir: str | os.PathLike[str], generation: int) -> Path:
+    """The checkpoint a video with ``--start generation`` begins from: the one written when
+    ``generation`` generations had completed.
+
+    Raises:
+        ValueError: the run directory kept no checkpoint of that generation; the message gives
+            the generations it has.
+    """
+    from evolution.api import CHECKPOINT_DIR
+    from evolution.runner import list_checkpoints
+
+    kept = list_checkpoints(Path(run_dir) / CHECKPOINT_DIR)
+    found = {int(p.stem.split("_")[-1]): p for p in kept}
+    if generation in found:
+        return found[generation]
+    if not found:
+        raise ValueError(f"{run_dir} has no checkpoint to render from (is it a run directory?)")
+    have = sorted(found)
+    contiguous = have == list(range(have[0], have[-1] + 1))
+    allowed = f"in [{have[0]}, {have[-1]}]" if contiguous else f"one of {have}"
+    raise ValueError(
+        f"--start must be a generation whose checkpoint {run_dir} kept, {allowed}, got "
+        f"{generation} (evolve with --keep-checkpoints 0 to keep every generation)"
+    )
+
+
+def run_robot_count(source: str | os.PathLike[str]) -> int | None:
+    """The robot count that a run directory (or a checkpoint inside one) records in its
+    ``run.json``; None when there is no readable record (the video checks it again)."""
+    from evolution.api import RUN_FILE
+
+    path = Path(source)
+    run_dir = path if path.is_dir() else path.parent.parent
+    try:
+        count = json.loads((run_dir / RUN_FILE).read_text())["config"]["world"]["n_robots"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return count if isinstance(count, int) else None
 
 
 @dataclass(frozen=True)
@@ -49,50 +211,358 @@ class VideoConfig:
         fps: frames per second of the MP4 (with ``steps_per_frame=1``, 5 is real time at the
             default 0.2 s control step, and the default 10 is twice real time).
         steps_per_frame: control steps between frames.
-        field_px: side of the top-down view in pixels (a multiple of 16).
+        width, height: frame size in pixels (see :data:`SIZE_RULE`).
+        camera: ``"top"``, ``"chase:N"`` or ``"omni:N"`` (see the module docstring).
         mating_flash_frames: frames a mating line stays visible.
     """
 
     fps: int = integer(10, 1, 120)
     steps_per_frame: int = integer(1, 1, 1000)
-    field_px: int = integer(720, 128, 2048)
+    width: int = integer(1280, MIN_HEIGHT + MIN_COLUMN, MAX_WIDTH, unit="px")
+    height: int = integer(720, MIN_HEIGHT, MAX_HEIGHT, unit="px")
+    camera: str = "top"
     mating_flash_frames: int = integer(8, 0)
 
     def __post_init__(self) -> None:
         validate_fields(self)
-        if self.field_px % 16:
+        check_frame_size(self.width, self.height)
+        parse_camera(self.camera)
+
+
+# --- layout ----------------------------------------------------------------------------------
+class Rect(NamedTuple):
+    """A panel of a frame, in pixels."""
+
+    x: int
+    y: int
+    w: int
+    h: int
+
+    @property
+    def slices(self) -> tuple[slice, slice]:
+        return slice(self.y, self.y + self.h), slice(self.x, self.x + self.w)
+
+
+@dataclass(frozen=True)
+class FrameLayout:
+    """Where each panel of a frame goes; the panels tile the frame exactly.
+
+    Attributes:
+        field: the top-down field (always at least as wide as tall: never cropped).
+        chase: the chase view (camera ``chase:N``), else None.
+        cells: one robot's status line (``status_h`` tall, font ``status_scale``) over its
+            omni strip, per robot in ``cell_robots``.
+        legend: the legend, under a line on the run's state.
+        scale: font scale of the legend and captions (from the frame height).
+    """
+
+    width: int
+    height: int
+    camera: Camera
+    field: Rect
+    chase: Rect | None
+    cells: tuple[Rect, ...]
+    cell_robots: tuple[int, ...]
+    status_h: int
+    legend: Rect
+    scale: float
+    status_scale: float
+
+    @property
+    def panels(self) -> list[Rect]:
+        found = [self.field, *self.cells, self.legend]
+        return found if self.chase is None else [self.chase, *found]
+
+
+class LegendItem(NamedTuple):
+    """One line of the legend: an icon (a small drawing of the overlay) and what it means."""
+
+    icon: str
+    rgb: RGB
+    text: str
+
+
+def legend_items(camera: Camera) -> list[LegendItem]:
+    """The legend of a frame shown with ``camera``."""
+    items = [LegendItem("swatch", rgb, text) for text, rgb in (
+        ("Mate: seek a partner", BEHAVIOUR_STYLE[0][1]),
+        ("Forage: seek a pack", BEHAVIOUR_STYLE[1][1]),
+        ("Search: explore", BEHAVIOUR_STYLE[2][1]),
+        ("Recharge: docked", BEHAVIOUR_STYLE[-1][1]),
+    )]  # fmt: skip
+    items += [
+        LegendItem("label", (255, 255, 255), "CRi = robot i (chase:i)"),
+        LegendItem("bar", ENERGY_RGB, "energy (red below 25 %)"),
+        LegendItem("arrow", HEADING_RGB, "heading"),
+        LegendItem("ring", DOCKED_RGB, "docked at a pack"),
+        LegendItem("line", MATING_RGB, "mating: genome exchange"),
+        LegendItem("disc", PACK_RGB, "battery pack"),
+        LegendItem("dot", LED_RGB, "LED on (green)"),
+    ]
+    if camera.robot is not None:
+        items.append(LegendItem("ring", FOLLOWED_RGB, f"robot followed (CR{camera.robot})"))
+    items.append(LegendItem("strip", (255, 255, 255), "omni strip: 360 deg, ahead mid"))
+    return items
+
+
+def _line_height(scale: float) -> int:
+    (_, th), base = cv2.getTextSize("Ag", FONT, scale, text_thickness(scale))
+    return th + base + max(4, round(th * 0.5))
+
+
+def status_height(scale: float) -> int:
+    return _line_height(scale) + 2
+
+
+def _icon_width(line: int) -> int:
+    return round(1.6 * line)
+
+
+def _legend_geometry(width: int, items: Sequence[LegendItem], scale: float) -> tuple[int, int]:
+    """(columns, least height in px) of the legend at ``width``."""
+    line = _line_height(scale)
+    pad = max(4, line // 3)
+    icon = _icon_width(line)
+    text_w = max(cv2.getTextSize(i.text, FONT, scale, text_thickness(scale))[0][0] for i in items)
+    column = icon + text_w + 2 * pad
+    columns = max(1, min(len(items), (width - pad) // column))
+    rows = -(-len(items) // columns)
+    return columns, pad + line + pad + rows * line + pad
+
+
+def strip_ratio(camera: CameraConfig) -> float:
+    """Height / width of an omni strip drawn with pixels that span the same angle both ways
+    (so that it reads as a panorama)."""
+    proj = OmniProjection(camera)
+    aspect = proj.px_per_v / proj.px_per_u
+    return camera.height / aspect / camera.strip_width
+
+
+def _cell_height(n: int, width: int, room: int, status_h: int, ratio: float) -> int | None:
+    """Height of each of ``n`` stacked cells in ``room`` px: the strip's natural height,
+    stretched up to :data:`MAX_STRETCH` times to use spare room or squeezed to fit; None if a
+    strip would be shorter than :data:`MIN_STRIP`."""
+    natural = max(MIN_STRIP, round(width * ratio))
+    if n == 0:
+        return status_h + natural
+    cell = min(room // n, status_h + round(MAX_STRETCH * natural))
+    return cell if cell - status_h >= MIN_STRIP else None
+
+
+def frame_layout(
+    width: int, height: int, camera: Camera, n_robots: int, camera_config: CameraConfig
+) -> FrameLayout:
+    """Tile a ``width`` × ``height`` frame for ``camera`` and ``n_robots`` robots.
+
+    Raises:
+        ValueError: a bad size, a camera following a robot that does not exist, or a frame too
+            small for the robots' strips (the message says the least height that works).
+    """
+    width, height = check_frame_size(width, height)
+    check_camera_robot(camera, n_robots)
+    layout = _tile(width, height, camera, n_robots, camera_config)
+    if layout is not None:
+        return layout
+    for taller in range(height + 2, MAX_HEIGHT + 1, 2):
+        wider = min(MAX_WIDTH, max(width, 2 * round(taller * 8 / 9)))  # 16:9 or wider
+        if _tile(wider, taller, camera, n_robots, camera_config):
             raise ValueError(
-                f"field_px must be a multiple of 16 in [128, 2048], got {self.field_px!r}"
+                f"--size {width}x{height} is too small for {n_robots} robots with --camera "
+                f"{camera}: H must be at least {taller} (e.g. --size {wider}x{taller})"
             )
+    raise ValueError(
+        f"--camera {camera} cannot show {n_robots} robots in any --size ({SIZE_RULE}); use "
+        "--camera chase:N or omni:N"
+    )
+
+
+def _tile(
+    width: int, height: int, camera: Camera, n: int, camera_config: CameraConfig
+) -> FrameLayout | None:
+    """The layout, with the status lines' font shrunk to the smallest if that makes the
+    robots' strips fit; None if nothing fits."""
+    scale = text_scale(height)
+    for status_scale in (scale, SMALLEST_TEXT):
+        layout = _tile_at(width, height, camera, n, camera_config, scale, status_scale)
+        if layout is not None:
+            return layout
+    return None
+
+
+def _tile_at(
+    width: int,
+    height: int,
+    camera: Camera,
+    n: int,
+    camera_config: CameraConfig,
+    scale: float,
+    status_scale: float,
+) -> FrameLayout | None:
+    status_h = status_height(status_scale)
+    column = min(width - height, max(MIN_COLUMN, round(0.9 * height)))
+    main = width - column
+    _, need = _legend_geometry(column, legend_items(camera), scale)
+    ratio = strip_ratio(camera_config)
+    cells: list[Rect] = []
+    robots: list[int] = []
+    chase = None
+    if camera.kind == "top":
+        cell = _cell_height(n, column, height - need, status_h, ratio)
+        if cell is None:
+            return None
+        field = Rect(0, 0, main, height)
+        robots = list(range(n))
+        cells = [Rect(main, k * cell, column, cell) for k in robots]
+        legend = Rect(main, n * cell, column, height - n * cell)
+    elif camera.kind == "chase":
+        assert camera.robot is not None
+        cell = status_h + round(column * ratio)
+        side = min(column, height - cell - need)
+        if side < MIN_FIELD:
+            return None
+        chase = Rect(0, 0, main, height)
+        field = Rect(main, 0, column, side)
+        robots = [camera.robot]
+        cells = [Rect(main, side, column, cell)]
+        legend = Rect(main, side + cell, column, height - side - cell)
+    else:
+        assert camera.robot is not None
+        band = status_h + min(round(width * ratio), round(0.4 * height))
+        lower = height - band
+        if lower < need:
+            return None
+        field = Rect(0, band, main, lower)
+        robots = [camera.robot]
+        cells = [Rect(0, 0, width, band)]
+        others = [i for i in range(n) if i != camera.robot]
+        cell = _cell_height(len(others), column, lower - need, status_h, ratio)
+        if cell is None:
+            others, cell = [], 0
+        robots += others
+        cells += [Rect(main, band + k * cell, column, cell) for k in range(len(others))]
+        top = band + len(others) * cell
+        legend = Rect(main, top, column, height - top)
+    return FrameLayout(
+        width, height, camera, field, chase, tuple(cells), tuple(robots), status_h, legend,
+        scale, status_scale,
+    )  # fmt: skip
+
+
+# --- drawing ---------------------------------------------------------------------------------
+def draw_legend(
+    image: np.ndarray, items: Sequence[LegendItem], scale: float, info_lines: int = 1
+) -> None:
+    """Draw ``items`` into ``image`` (the legend panel), below ``info_lines`` lines left free
+    for the run's state."""
+    image[:] = LEGEND_RGB
+    height, width = image.shape[:2]
+    columns, _ = _legend_geometry(width, items, scale)
+    line = _line_height(scale)
+    pad = max(4, line // 3)
+    column_w = (width - pad) // columns
+    top = pad + info_lines * line + pad
+    rows = -(-len(items) // columns)
+    # Spread the rows over spare height (up to 1.5 lines apart), so no empty band is left.
+    pitch = max(line, min(round(1.5 * line), (height - top - pad) // rows))
+    cv2.line(image, (pad, top - pad // 2), (width - pad, top - pad // 2), (80, 84, 96), 1)
+    (_, th), _ = cv2.getTextSize("Ag", FONT, scale, text_thickness(scale))
+    for k, item in enumerate(items):
+        row, col = divmod(k, columns)
+        x = pad + col * column_w
+        y = top + row * pitch + (pitch - line) // 2
+        if y + line > height:
+            break
+        icon = _icon_width(line)
+        _draw_icon(image, item, (x, y), icon - pad, line, scale)
+        draw_text(image, item.text, (x + icon, y + (line + th) // 2), scale, (230, 230, 230))
+
+
+def _draw_icon(
+    image: np.ndarray, item: LegendItem, at: tuple[int, int], w: int, h: int, scale: float
+) -> None:
+    x, y = at
+    cy, cx = y + h // 2, x + w // 2
+    r = max(3, h // 3)
+    aa = cv2.LINE_AA
+    if item.icon == "swatch":
+        cv2.rectangle(image, (x + 2, y + 3), (x + w - 2, y + h - 4), item.rgb, -1)
+    elif item.icon == "label":
+        cv2.rectangle(image, (x + 1, y + 2), (x + w - 1, y + h - 3), LABEL_BOX_RGB, -1)
+        cv2.rectangle(image, (x + 1, y + 2), (x + w - 1, y + h - 3), item.rgb, 1)
+        s = scale * 0.7
+        draw_text(image, "CR", (x + 4, cy + round(5 * s / 0.35)), s, item.rgb)
+    elif item.icon == "bar":
+        third = (w - 4) // 3
+        cv2.rectangle(image, (x + 2, cy - 3), (x + w - 2, cy + 3), (70, 70, 70), -1)
+        cv2.rectangle(image, (x + 2, cy - 3), (x + 2 + 2 * third, cy + 3), item.rgb, -1)
+        cv2.rectangle(image, (x + 2 + 2 * third, cy - 3), (x + w - 2, cy + 3), LOW_ENERGY_RGB, -1)
+    elif item.icon == "arrow":
+        draw_heading(image, np.array([x + 3, cy]), 0.0, w - 6, max(1, round(scale * 4)))
+    elif item.icon == "ring":
+        cv2.circle(image, (cx, cy), r + 1, item.rgb, 2, aa)
+    elif item.icon == "line":
+        cv2.line(image, (x + 2, cy + r), (x + w - 2, cy - r), item.rgb, 3, aa)
+    elif item.icon == "disc":
+        cv2.circle(image, (cx, cy), r, item.rgb, -1, aa)
+    elif item.icon == "dot":
+        cv2.circle(image, (cx, cy), max(2, r // 2 + 1), item.rgb, -1, aa)
+    elif item.icon == "strip":
+        cv2.rectangle(image, (x + 1, y + 3), (x + w - 1, y + h - 4), (120, 120, 120), 1)
+        cv2.line(image, (cx, y + 3), (cx, y + h - 4), item.rgb, 1)
+
+
+def _fit(parts: Sequence[str], width: int, scale: float) -> str:
+    """As many of ``parts`` (most important first) as fit in ``width`` px on one line."""
+    text = parts[0]
+    for part in parts[1:]:
+        longer = f"{text}  {part}"
+        if cv2.getTextSize(longer, FONT, scale, text_thickness(scale))[0][0] > width:
+            break
+        text = longer
+    return text
 
 
 class RunVideo:
-    """Renders frames of a running :class:`EvolutionRunner`."""
+    """Renders frames of a running :class:`EvolutionRunner`.
+
+    Raises:
+        ValueError: ``config.camera`` follows a robot the run does not have, or the frame is
+            too small for the run's robots.
+    """
 
     def __init__(self, runner: EvolutionRunner, config: VideoConfig | None = None):
         self.runner = runner
         self.config = config or VideoConfig()
         world = runner.world
-        px = self.config.field_px
-        self.field = FieldRenderer(world, px, px)
-        self.camera = CameraConfig()
-        self.omni = OmniRenderer(world, self.camera)
         n = world.config.n_robots
         self.n = n
-        # Right column: one strip per robot, scaled to the column width, plus a status line.
-        from cyber_rodent.vision.projection import OmniProjection
-
-        proj = OmniProjection(self.camera)
-        self._recentre = self.camera.strip_width // 2 - int(np.argmin(np.abs(proj.column_bearing)))
-        # Scale so that a pixel spans the same angle both ways (the strip reads as a panorama).
-        aspect = proj.px_per_v / proj.px_per_u
-        self.strip_w = px
-        self.strip_h = max(16, round(px * self.camera.height / aspect / self.camera.strip_width))
-        self.status_h = 22
-        panel = n * (self.strip_h + self.status_h)
-        self.height = max(px, (panel + 15) // 16 * 16)
-        self.width = 2 * px
+        self.camera = parse_camera(self.config.camera)
+        self.camera_config = runner.config.camera
+        self.layout = frame_layout(
+            self.config.width, self.config.height, self.camera, n, self.camera_config
+        )
+        self.width, self.height = self.layout.width, self.layout.height
+        proj = OmniProjection(self.camera_config)
+        self._recentre = self.camera_config.strip_width // 2 - int(
+            np.argmin(np.abs(proj.column_bearing))
+        )
+        self.items = legend_items(self.camera)
+        self.field = FieldRenderer(
+            world, self.layout.field.w, self.layout.field.h, background=BACKGROUND_RGB
+        )
+        self._px_per_m = self.field.metres_to_px()
+        self.chase = None
+        if self.layout.chase is not None:
+            self.chase = FieldRenderer(
+                world, self.layout.chase.w, self.layout.chase.h, background=BACKGROUND_RGB
+            )
+        self.omni = OmniRenderer(world, self.camera_config)
+        legend = self.layout.legend
+        self._legend = np.empty((legend.h, legend.w, 3), dtype=np.uint8)
+        draw_legend(self._legend, self.items, self.layout.scale)
         self._flash: list[tuple[int, int, int]] = []  # (robot a, robot b, frames left)
+        #: The label boxes of the last frame's field panel (panel pixels), None if none fit.
+        self.label_boxes: np.ndarray | None = None
 
     def advance(self) -> None:
         """Step the run by ``steps_per_frame`` control steps, remembering matings to draw."""
@@ -107,19 +577,16 @@ class RunVideo:
 
     def frame(self) -> np.ndarray:
         """The current frame, (height, width, 3) uint8 RGB."""
+        layout = self.layout
         out = np.zeros((self.height, self.width, 3), dtype=np.uint8)
-        px = self.config.field_px
-        out[:px, :px] = self._field_panel()
-        strips = self.omni.render()
-        y = 0
-        for i in range(self.n):
-            out[y : y + self.status_h, px:] = self._status_line(i)
-            y += self.status_h
-            strip = np.roll(strips[i], self._recentre, axis=1)
-            out[y : y + self.strip_h, px:] = cv2.resize(
-                strip, (self.strip_w, self.strip_h), interpolation=cv2.INTER_AREA
-            )
-            y += self.strip_h
+        out[layout.field.slices] = self._field_panel()
+        if layout.chase is not None:
+            out[layout.chase.slices] = self._chase_panel()
+        if layout.cells:
+            strips = self.omni.render()
+            for rect, i in zip(layout.cells, layout.cell_robots, strict=True):
+                out[rect.slices] = self._cell(i, rect, strips[i])
+        out[layout.legend.slices] = self._legend_panel()
         return out
 
     def _behaviour(self) -> np.ndarray:
@@ -130,59 +597,104 @@ class RunVideo:
 
     def _field_panel(self) -> np.ndarray:
         runner, world = self.runner, self.runner.world
-        image = np.ascontiguousarray(self.field.top_down())
-        poses = world.poses()
-        top = np.column_stack([poses[:, :2], np.full(self.n, 0.17)])
-        pix = self.field.project_top_down(top).round().astype(int)
+        image = self.field.top_down()
+        top = np.column_stack([world.poses()[:, :2], np.full(self.n, ROBOT_TOP_Z)])
+        ends = self.field.project_top_down(top).round().astype(int)
         behaviour = self._behaviour()
         max_energy = runner.survival.config.max_energy
+        ppm = self._px_per_m
+        thick = max(2, round(0.012 * ppm))
         for a, b, _ in self._flash:
-            cv2.line(image, tuple(pix[a]), tuple(pix[b]), (255, 60, 200), 3, cv2.LINE_AA)
+            cv2.line(image, tuple(ends[a]), tuple(ends[b]), MATING_RGB, thick, cv2.LINE_AA)
         self._flash = [(a, b, k - 1) for a, b, k in self._flash if k > 1]
+        for i in np.flatnonzero(runner.survival.docked).tolist():
+            cv2.circle(image, tuple(ends[i]), round(0.16 * ppm), DOCKED_RGB, thick, cv2.LINE_AA)
+        if self.camera.robot is not None:
+            centre = tuple(ends[self.camera.robot])
+            cv2.circle(image, centre, round(0.2 * ppm), OUTLINE_RGB, thick + 2, cv2.LINE_AA)
+            cv2.circle(image, centre, round(0.2 * ppm), FOLLOWED_RGB, thick, cv2.LINE_AA)
+        tags = []
         for i in range(self.n):
-            x, y = pix[i]
-            label, colour = BEHAVIOUR_STYLE[int(behaviour[i])]
-            if runner.survival.docked[i]:
-                cv2.circle(image, (x, y), 34, (255, 200, 40), 2, cv2.LINE_AA)
+            label, rgb = BEHAVIOUR_STYLE[int(behaviour[i])]
             energy = float(runner.survival.energy[i]) / max_energy
-            x0, y0 = x - 28, y - 44
-            cv2.rectangle(image, (x0, y0), (x0 + 56, y0 + 7), (40, 40, 40), -1)
-            bar = (60, 200, 60) if energy > 0.25 else (230, 60, 40)
-            cv2.rectangle(image, (x0, y0), (x0 + int(56 * energy), y0 + 7), bar, -1)
-            cv2.putText(
-                image, f"CR{i + 1} {label}", (x - 30, y + 48), _FONT, 0.45, colour, 2, cv2.LINE_AA
-            )
-        t = world.data.time
-        cv2.rectangle(image, (0, 0), (430, 34), (20, 20, 20), -1)
-        cv2.putText(
-            image,
-            f"t = {t:7.1f} s   generation {runner.completed_generations}",
-            (12, 24),
-            _FONT,
-            0.6,
-            (255, 255, 255),
-            2,
-            cv2.LINE_AA,
-        )
+            tags.append(RobotTag(f"CR{i} {label}", rgb, energy))
+        scale = min(self.layout.scale, text_scale(image.shape[0]))
+        self.label_boxes = annotate_world(image, self.field, tags, scale)
         return image
 
-    def _status_line(self, i: int) -> np.ndarray:
+    def _chase_panel(self) -> np.ndarray:
+        assert self.chase is not None and self.camera.robot is not None
+        i = self.camera.robot
+        image = self.chase.robot_view(i)
+        label, _ = BEHAVIOUR_STYLE[int(self._behaviour()[i])]
+        energy = float(self.runner.survival.energy[i])
+        draw_caption(image, f"CR{i} chase view  {label}  energy {energy:.0f}", self.layout.scale)
+        return image
+
+    def _cell(self, i: int, rect: Rect, strip: np.ndarray) -> np.ndarray:
+        cell = np.empty((rect.h, rect.w, 3), dtype=np.uint8)
+        status_h = self.layout.status_h
+        cell[:status_h] = self._status_line(i, rect.w)
+        view = fill_background(np.roll(strip, self._recentre, axis=1), BACKGROUND_RGB)
+        shrink = rect.w < view.shape[1]
+        cell[status_h:] = cv2.resize(
+            view,
+            (rect.w, rect.h - status_h),
+            interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR,
+        )
+        return cell
+
+    def _status_line(self, i: int, width: int) -> np.ndarray:
         runner = self.runner
-        line = np.full((self.status_h, self.strip_w, 3), 24, dtype=np.uint8)
+        scale = self.layout.status_scale
+        line = np.empty((self.layout.status_h, width, 3), dtype=np.uint8)
+        line[:] = STATUS_RGB
         sched = runner.scheduler
         slot = int(sched.active_slot[i])
         generation = int(sched.slot_generation[i, slot])
-        label, colour = BEHAVIOUR_STYLE[int(self._behaviour()[i])]
+        label, rgb = BEHAVIOUR_STYLE[int(self._behaviour()[i])]
+        energy = float(runner.survival.energy[i])
         led = "LED on" if runner.world.led_on[i] else "LED off"
-        text = (
-            f"CR{i + 1}  agent {slot:2d}  gen {generation:3d}  "
-            f"energy {runner.survival.energy[i]:5.0f}  {label:8s} {led}"
-        )
-        cv2.putText(line, text, (6, 16), _FONT, 0.5, colour, 1, cv2.LINE_AA)
+        parts = [f"CR{i}", label, f"energy {energy:.0f}", f"agent {slot}", f"gen {generation}", led]
+        if self.camera.kind == "omni" and i == self.camera.robot:
+            parts.append("360 deg camera, straight ahead in the middle")
+        pad = max(4, self.layout.status_h // 5)
+        text = _fit(parts, width - 2 * pad - self.layout.status_h, scale)
+        (_, th), _ = cv2.getTextSize(text, FONT, scale, text_thickness(scale))
+        y = (self.layout.status_h + th) // 2
+        fraction = min(1.0, max(0.0, energy / runner.survival.config.max_energy))
+        # A small energy gauge at the line's right end.
+        gauge = self.layout.status_h - 2 * pad
+        x0 = width - pad - gauge
+        cv2.rectangle(line, (x0, pad), (x0 + gauge, pad + gauge), (70, 70, 70), -1)
+        fill = round(gauge * fraction)
+        colour = ENERGY_RGB if fraction > LOW_ENERGY else LOW_ENERGY_RGB
+        if fill:
+            cv2.rectangle(line, (x0, pad + gauge - fill), (x0 + gauge, pad + gauge), colour, -1)
+        draw_text(line, text, (pad, y), scale, rgb)
         return line
+
+    def _legend_panel(self) -> np.ndarray:
+        image = self._legend.copy()
+        runner = self.runner
+        scale = self.layout.scale
+        line = _line_height(scale)
+        pad = max(4, line // 3)
+        info = [
+            f"{runner.config.method.upper()} seed {runner.seed}",
+            f"generation {runner.completed_generations}",
+            f"t = {runner.world.data.time:.1f} s",
+            f"step {runner.steps}",
+        ]
+        (_, th), _ = cv2.getTextSize("Ag", FONT, scale, text_thickness(scale))
+        text = _fit(info, image.shape[1] - 2 * pad, scale)
+        draw_text(image, text, (pad, pad + (line + th) // 2), scale, (255, 255, 255))
+        return image
 
     def close(self) -> None:
         self.field.close()
+        if self.chase is not None:
+            self.chase.close()
         self.omni.close()
 
 
@@ -196,8 +708,8 @@ def render_video(
     """Continue ``runner`` for ``frames`` frames and write them as an MP4.
 
     Raises:
-        ValueError: a bad frame count or config, or an unwritable output path (checked before
-            anything is rendered).
+        ValueError: a bad frame count or config, an unwritable output path, or a camera or
+            size that does not suit the run's robots (all checked before any file is created).
     """
     import imageio.v2 as imageio
 
@@ -216,14 +728,14 @@ def render_video(
                 fps=config.fps,
                 codec="libx264",
                 quality=7,
-                macro_block_size=16,
+                macro_block_size=2,  # sizes are even; H.264 with yuv420p needs no more
                 pixelformat="yuv420p",
             )
             bar = None
             if progress:
-                from tqdm.auto import tqdm
+                from cyber_rodent.progress import progress_bar
 
-                bar = tqdm(
+                bar = progress_bar(
                     total=frames, unit="frame", desc=f"render {out.name}", dynamic_ncols=True
                 )
             try:

@@ -1,12 +1,25 @@
-"""Off-screen rendering: the top-down image shows packs where they are, and the LED."""
+"""Off-screen rendering: the top-down image shows packs where they are, and the LED; robot
+labels never overlap, however the robots crowd."""
 
 from __future__ import annotations
 
+import itertools
+import math
+
 import cv2
+import mujoco
 import numpy as np
 import pytest
 
-from cyber_rodent.render import FieldRenderer
+from cyber_rodent.render import (
+    BACKGROUND_RGB,
+    FieldRenderer,
+    RobotTag,
+    annotate_world,
+    boxes_intersect,
+    label_size,
+    place_labels,
+)
 from cyber_rodent.world import World, WorldConfig
 
 
@@ -78,3 +91,97 @@ def test_impossible_image_size(size: int) -> None:
     world = World(WorldConfig(n_robots=1, n_packs=1), np.random.default_rng(0))
     with pytest.raises(ValueError, match="width"):
         FieldRenderer(world, size, 64)
+
+
+# --- annotations: robot IDs, heading arrows, labels that never overlap ---------------------------
+def cluster_on_pack(world: World, distance: float = 0.2, pack: int = 0) -> None:
+    """Park every robot around one pack, a few cm from its ring, facing it."""
+    px, py = world.pack_positions()[pack]
+    n = world.config.n_robots
+    for i in range(n):
+        a = 2 * math.pi * i / n + 0.4
+        x, y = px + distance * math.cos(a), py + distance * math.sin(a)
+        world.set_robot_pose(i, x, y, a + math.pi)
+    mujoco.mj_forward(world.model, world.data)
+
+
+def assert_disjoint(boxes: np.ndarray, bounds: tuple[int, int]) -> None:
+    width, height = bounds
+    assert (boxes[:, 0] >= 0).all() and (boxes[:, 1] >= 0).all()
+    assert (boxes[:, 2] <= width).all() and (boxes[:, 3] <= height).all()
+    assert (boxes[:, 2] > boxes[:, 0]).all() and (boxes[:, 3] > boxes[:, 1]).all()
+    for a, b in itertools.combinations(boxes.tolist(), 2):
+        assert not boxes_intersect(a, b), (a, b)
+
+
+def test_labels_of_robots_clustered_on_one_pack_do_not_overlap() -> None:
+    world = World(WorldConfig(), np.random.default_rng(4))
+    cluster_on_pack(world)
+    with FieldRenderer(world, 480, 480) as renderer:
+        poses = world.poses()
+        anchors = renderer.project_top_down(np.column_stack([poses[:, :2], np.full(4, 0.17)]))
+        assert np.ptp(anchors, axis=0).max() < 0.5 * renderer.metres_to_px()  # one cluster
+        tags = [RobotTag(f"CR{i} Recharge", energy=0.5) for i in range(4)]
+        sizes = np.array([label_size(tag, 0.5) for tag in tags])
+        clearance = 0.11 * renderer.metres_to_px()
+        boxes = place_labels(anchors, sizes, (480, 480), clearance)
+    assert boxes is not None and boxes.shape == (4, 4)
+    assert_disjoint(boxes, (480, 480))
+    assert ((boxes[:, 2:] - boxes[:, :2]) == sizes).all()  # every label at its full size
+    # Each label stays near its robot (within a few label heights).
+    centres = (boxes[:, :2] + boxes[:, 2:]) / 2
+    assert np.hypot(*(centres - anchors).T).max() < clearance + 4 * sizes[:, 1].max()
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_labels_never_overlap_whatever_the_positions(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    width, height = int(rng.integers(120, 721)), int(rng.integers(120, 721))
+    n = int(rng.integers(1, 27))
+    kind = seed % 4
+    if kind == 0:  # all on one point
+        anchors = np.tile(rng.uniform(0, [width, height]), (n, 1))
+    elif kind == 1:  # in a corner, partly outside the image
+        anchors = rng.uniform(-20, 30, size=(n, 2))
+    elif kind == 2:  # a tight cluster
+        anchors = rng.normal([width / 2, height / 2], 5, size=(n, 2))
+    else:
+        anchors = rng.uniform(0, [width, height], size=(n, 2))
+    scale = float(rng.uniform(0.3, 0.7))
+    sizes = np.array([label_size(RobotTag(f"CR{i} Forage", energy=0.3), scale) for i in range(n)])
+    boxes = place_labels(anchors, sizes, (width, height), clearance=12.0)
+    cells = (width // (sizes[:, 0].max() + 3)) * (height // (sizes[:, 1].max() + 3))
+    if n <= cells:  # room for a grid of the labels: they must all be placed
+        assert boxes is not None
+    if boxes is not None:
+        assert_disjoint(boxes, (width, height))
+
+
+def test_snapshot_annotations_ids_and_arrows() -> None:
+    world = World(WorldConfig(), np.random.default_rng(4))
+    cluster_on_pack(world)
+    with FieldRenderer(world, 400, 400, background=BACKGROUND_RGB) as renderer:
+        image = renderer.top_down()
+        bare = image.copy()
+        boxes = annotate_world(image, renderer)
+    assert boxes is not None
+    assert_disjoint(boxes, (400, 400))
+    # The empty space around the field is painted, never left black.
+    assert not (~bare.any(axis=2)).any()
+    # Each label box holds light text on a dark box, and arrows changed pixels at the robots.
+    for x0, y0, x1, y1 in boxes:
+        inside = image[y0 + 2 : y1 - 2, x0 + 2 : x1 - 2]
+        assert (inside.min(axis=2) > 200).sum() >= 10
+    assert (image != bare).any(axis=2).sum() > 500
+
+
+def test_background_only_replaces_empty_space() -> None:
+    world = World(WorldConfig(), np.random.default_rng(4))
+    with FieldRenderer(world, 320, 200) as plain, FieldRenderer(
+        world, 320, 200, background=BACKGROUND_RGB
+    ) as painted:
+        a, b = plain.top_down(), painted.top_down()
+    empty = ~a.any(axis=2)
+    assert empty.sum() > 1000  # a wide image shows space beside the field
+    assert (b[empty] == BACKGROUND_RGB).all()
+    np.testing.assert_array_equal(a[~empty], b[~empty])
