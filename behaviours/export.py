@@ -23,6 +23,7 @@ it, and importing the rest of :mod:`behaviours` never does.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 from pathlib import Path
@@ -39,6 +40,7 @@ except ImportError as err:  # pragma: no cover - depends on the installation
 from behaviours.action_values import ActionValues
 from behaviours.greedy_policy import GreedyPolicy
 from behaviours.tile_coding import MASK16, MASK32, MIX_MUL_1, MIX_MUL_2, TileCoder
+from cyber_rodent.atomic import atomic_output
 
 #: Name of the JSON description stored next to the program in the ``.pt2`` archive.
 METADATA_FILE = "action_values.json"
@@ -148,7 +150,8 @@ def export_greedy_policy(policy: GreedyPolicy | ActionValues, path: str | os.Pat
         "output": "int64 (batch,) greedy action index",
     }
     path.parent.mkdir(parents=True, exist_ok=True)
-    torch.export.save(program, path, extra_files={METADATA_FILE: json.dumps(description)})
+    with atomic_output(path) as temp:
+        torch.export.save(program, temp, extra_files={METADATA_FILE: json.dumps(description)})
     return path
 
 
@@ -180,6 +183,9 @@ def export_behaviour_policies(
 ) -> dict[str, Path]:
     """Export the greedy policy of every behaviour's trained values as ``<name>.pt2``.
 
+    Every values file is read before anything is written, and each program is written
+    atomically, so a missing or damaged file leaves ``out_dir`` as it was.
+
     Args:
         out_dir: destination directory (created if needed).
         values_dir: where ``{mate,forage,search}.npz`` live; default the shipped values.
@@ -193,36 +199,64 @@ def export_behaviour_policies(
     from behaviours.definitions import load_values
     from behaviours.inputs import BEHAVIOUR_NAMES
 
+    values = {name: load_values(name, values_dir) for name in BEHAVIOUR_NAMES}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    return {
-        name: export_greedy_policy(load_values(name, values_dir), out / f"{name}.pt2")
-        for name in BEHAVIOUR_NAMES
-    }
+    return {name: export_greedy_policy(v, out / f"{name}.pt2") for name, v in values.items()}
+
+
+#: Exit status of every user error.
+EXIT_USAGE = 2
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``export`` command's options to ``parser``."""
+    parser.add_argument("--out", required=True, metavar="DIR",
+                        help="output directory (created if needed)")  # fmt: skip
+    parser.add_argument(
+        "--values", default=None, metavar="DIR",
+        help="directory of mate.npz, forage.npz and search.npz (default: the shipped values)",
+    )  # fmt: skip
+    parser.set_defaults(export_prog=parser.prog)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Export the three behaviours; 0 on success, 2 (one line on stderr) on bad input.
+
+    ``--out`` and ``--values`` are checked, and every values file read, before anything is
+    written.
+    """
+    import sys
+
+    prog = getattr(args, "export_prog", "behaviours.export")
+    try:
+        out = Path(args.out).expanduser()
+        if out.exists() and not out.is_dir():
+            raise ValueError(f"--out {out} is a file; it must be a directory (new or existing)")
+        if args.values is not None and not Path(args.values).is_dir():
+            raise ValueError(
+                f"--values {args.values} is not a directory; it must hold mate.npz, forage.npz "
+                "and search.npz"
+            )
+        paths = export_behaviour_policies(out, args.values)
+    except (OSError, ValueError) as err:
+        print(f"{prog}: error: {err}", file=sys.stderr)
+        return EXIT_USAGE
+    for name, path in paths.items():
+        print(f"{name}: wrote {path}")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m behaviours.export --out DIR``: export the three shipped behaviours."""
-    import argparse
-    import sys
-
     parser = argparse.ArgumentParser(
         prog="python -m behaviours.export",
         description="Export the greedy Mate, Forage and Search policies as torch.export .pt2 "
         "programs for robot controllers (input: float64 (batch, 2) in [0, 1]; output: wheel "
-        "command index).",
+        "command index). Load one with torch.export.load(path).module().",
     )
-    parser.add_argument("--out", required=True, help="output directory")
-    parser.add_argument("--values", default=None, help="values directory (default: shipped)")
-    args = parser.parse_args(argv)
-    try:
-        paths = export_behaviour_policies(args.out, args.values)
-    except (OSError, ValueError) as err:
-        print(f"behaviours.export: error: {err}", file=sys.stderr)
-        return 2
-    for name, path in paths.items():
-        print(f"{name}: wrote {path}")
-    return 0
+    add_arguments(parser)
+    return run(parser.parse_args(argv))
 
 
 if __name__ == "__main__":

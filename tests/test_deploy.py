@@ -1,12 +1,16 @@
-"""Deployment bundle: round trip, a standalone reference step that decides as the simulator."""
+"""Deployment bundle: round trip, a standalone reference step that decides as the simulator,
+the robot engineer's bundle.json and README.md, mated-only selection and the command line."""
 
 from __future__ import annotations
 
+import argparse
 import ast
+import dataclasses
 import importlib
 import importlib.util
 import json
 import math
+import re
 import sys
 
 import numpy as np
@@ -16,18 +20,24 @@ import torch
 from behaviours import BehaviourPolicies
 from behaviours.definitions import load_values
 from behaviours.greedy_policy import GreedyPolicy
+from cyber_rodent import constants as C
 from cyber_rodent.profiles import HardwareProfile
 from evolution.config import EvolutionConfig
 from evolution.deploy import (
     BUNDLE_FILE,
+    README_FILE,
     REFERENCE_FILE,
     WEIGHTS_FILE,
     record_decisions,
     write_bundle,
 )
+from evolution.deploy.__main__ import add_arguments, main, run
+from evolution.deploy.readme import SECTIONS
+from evolution.deploy.selection import choose_agents
+from evolution.experiment import run_config_from_record
 from evolution.genome import Genome
 from evolution.runner import EvolutionRunner, RunConfig
-from evolution.transfer import hardware_run_config
+from evolution.transfer import Individual, hardware_run_config
 
 SMALL = EvolutionConfig(population_size=8, n_robots=4, lifetime_steps=80, time_sharing_steps=40)
 
@@ -56,7 +66,10 @@ def recorded(tmp_path_factory):
     ran = np.concatenate([record["weights"].reshape(-1, 39), hw_record["weights"].reshape(-1, 39)])
     _, first = np.unique(ran, axis=0, return_index=True)
     genomes = [Genome(ran[i]) for i in sorted(first)]
-    bundle = write_bundle(tmp_path_factory.mktemp("bundle"), genomes, provenance={"test": 1})
+    bundle = write_bundle(
+        tmp_path_factory.mktemp("bundle"), genomes, config=RunConfig(evolution=SMALL),
+        provenance={"test": 1},
+    )  # fmt: skip
     return genomes, record, hw_record, bundle
 
 
@@ -129,8 +142,12 @@ def test_bad_bundle_input_gets_clear_errors(recorded, tmp_path) -> None:
     _, _, _, bundle = recorded
     with pytest.raises(ValueError, match=r"genomes must be at least one genome of 39 weights"):
         write_bundle(tmp_path / "b", np.zeros((2, 5)))
-    with pytest.raises(ValueError, match=r"max_energy must be in \(0, ∞\)"):
-        write_bundle(tmp_path / "b", [Genome(np.zeros(39))], max_energy=0)
+    with pytest.raises(ValueError, match=r"max_energy must be a number in \(0"):
+        write_bundle(tmp_path / "b", [Genome(np.zeros(39))],
+                     config=RunConfig(evolution=EvolutionConfig(max_energy=0)))  # fmt: skip
+    with pytest.raises(ValueError, match=r"config must be a RunConfig"):
+        write_bundle(tmp_path / "b", [Genome(np.zeros(39))], config=EvolutionConfig())
+    assert not list(tmp_path.iterdir())  # nothing written
     reference = _load_reference(bundle)
     n = len(recorded[0])
     with pytest.raises(ValueError, match=rf"agent must be an integer in \[0, {n - 1}\]"):
@@ -165,3 +182,248 @@ def test_reference_step_hand_computed(tmp_path) -> None:
     assert d.behaviour == 0  # a face in view: Mate wins with activation 1
     np.testing.assert_allclose(d.behaviour_input, [0.75, 1.15 / (2.3 * math.sqrt(2))])
     assert d.inputs[7] == pytest.approx(1.15 / (2.3 * math.sqrt(2)))
+
+
+# --- the robot engineer's bundle: bundle.json and README.md from the run's config ----------
+#: A config whose every survival and time-sharing number differs from the paper's, so a value
+#: the bundle took from anywhere but the config would show.
+_ODD = RunConfig(evolution=EvolutionConfig(
+    population_size=6, n_robots=2, lifetime_steps=90, time_sharing_steps=30, initial_energy=80.0,
+    max_energy=150.0, max_recharge_steps=25, fitness_time_unit=50.0,
+))  # fmt: skip
+ODD = _ODD.replace(survival=dataclasses.replace(
+    _ODD.survival, control_dt=0.25, energy_decay=2.0, recharge_rate=4.0,
+    decay_while_recharging=True, reflex_min_steps=1, reflex_max_steps=5, reflex_wheel_speed=0.4,
+    mate_angle_deg=20.0, mate_distance=0.3, mate_consecutive_steps=3, mate_reflex=False,
+    dock_bearing_tolerance_deg=12.0, capture_rule="recharge",
+))  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def odd_bundle(tmp_path_factory):
+    genomes = np.random.default_rng(3).uniform(-1, 1, (2, 39))
+    return write_bundle(tmp_path_factory.mktemp("odd") / "bundle", genomes, config=ODD)
+
+
+def test_bundle_json_states_the_run_config(odd_bundle) -> None:
+    spec = json.loads((odd_bundle / BUNDLE_FILE).read_text())
+    s, evo = ODD.survival, ODD.evolution
+    assert run_config_from_record(spec["run_config"]) == ODD  # the whole resolved config
+    assert spec["control"] == {"dt_s": 0.25, "rate_hz": 4.0}
+    assert spec["torch"]["version"] == torch.__version__ == spec["versions"]["torch"]
+    assert spec["torch"]["load"] == "torch.export.load(path).module()"
+    energy = spec["survival"]["energy"]
+    assert (energy["initial"], energy["max"], energy["decay_per_step"]) == (80.0, 150.0, 2.0)
+    assert energy["recharge_rate_per_step"] == s.recharge_rate
+    assert energy["recharge_gain_per_step"] == 4.0 - 2.0  # decay_while_recharging
+    recharge = spec["survival"]["recharge"]
+    assert recharge["max_steps"] == 25 and recharge["capture_rule"] == "recharge"
+    assert recharge["dock_bearing_tolerance_deg"] == 12.0
+    reflex = spec["survival"]["reflex"]
+    assert (reflex["min_steps"], reflex["max_steps"], reflex["wheel_speed_m_s"]) == (1, 5, 0.4)
+    assert reflex["after_mating"] is False and reflex["after_recharge"] is True
+    assert reflex["turn_per_step_rad"] == pytest.approx(0.4 * 0.25 / C.HALF_WHEEL_BASE)
+    sharing = spec["survival"]["time_sharing"]
+    assert (sharing["steps"], sharing["lifetime_steps"]) == (30, 90)
+    assert sharing["agents_per_robot_in_run"] == 3
+    mating = spec["survival"]["mating"]
+    assert mating["ir_port_distance_max_m"] == 0.3 and mating["ir_port_angle_max_deg"] == 20.0
+    assert mating["consecutive_steps"] == 3
+    assert mating["exchange_duration_s"] == pytest.approx(0.75)
+    assert spec["survival"]["fitness"]["time_unit_steps"] == evo.fitness_time_unit
+    norm = spec["normalisation"]
+    assert (norm["max_energy"], norm["max_recharge_steps"]) == (150.0, 25)
+    assert spec["controller"]["recharge_rule"].startswith("w0*energy/150 + w1*steps/25 + w2")
+    inputs = spec["controller"]["inputs"]
+    assert [i["name"] for i in inputs] == spec["controller"]["input_order"]
+    assert inputs[0]["value"].startswith("energy / 150")
+    # sensors: the constants' angles and ranges, positions and directions from the model
+    finders = spec["sensors"]["rangefinders"]
+    assert [(f["name"], f["angle_deg"], f["range_max_m"]) for f in finders] == [
+        (n, a, r) for n, a, r in C.RANGE_SENSORS
+    ]
+    for f in finders:
+        a = math.radians(f["angle_deg"])
+        np.testing.assert_allclose(f["direction"], [math.cos(a), math.sin(a), 0.0], atol=1e-4)
+        assert f["position_m"][2] == pytest.approx(0.08)  # 8 cm high (docs/design.md §4)
+    assert [f["proximity_input"] for f in finders] == [0, 1, 2, 3, 4, 5, None, None]
+    assert spec["sensors"]["ir_port"]["position_m"] == pytest.approx([0.111, -0.02, 0.08])
+    assert spec["sensors"]["camera"]["max_range_m"] == ODD.camera.max_range
+    conv = spec["conventions"]
+    assert conv["wheel_order"] == ["left", "right"] and "positive to the left" in conv["bearing"]
+    assert conv["wheel_radius_m"] == C.WHEEL_RADIUS
+
+
+def test_readme_has_every_section_and_the_run_numbers(odd_bundle) -> None:
+    text = (odd_bundle / README_FILE).read_text()
+    headings = re.findall(r"^## (.+)$", text, flags=re.M)
+    assert headings == list(SECTIONS)
+    assert "**0.25 s** (4 Hz)" in text
+    assert f"torch **{torch.__version__}**" in text
+    for line in ("DT = 0.25 s", "INITIAL_ENERGY = 80", "MAX_ENERGY = 150", "ENERGY_DECAY = 2",
+                 "RECHARGE_GAIN = 2 per step", "MAX_RECHARGE_STEPS = 25", "TIME_SHARING = 30",
+                 "LIFETIME = 90", "MATE_DISTANCE = 0.3 m", "MATE_ANGLE = 20 deg",
+                 "MATE_STEPS = 3", "REFLEX_STEPS = 1..5", "REFLEX_SPEED = 0.4 m/s",
+                 "FITNESS_UNIT = 50 steps"):  # fmt: skip
+        assert line in text, line
+    assert "# no reflex after mating" in text and "after mating: no." in text  # mate_reflex
+    assert "as a captured battery on its first recharge step" in text  # capture_rule
+    assert "| 0 | energy | energy / 150" in text
+    assert "| 5 | range_back | 180 |" in text
+    assert "reference_step.py" in text
+
+
+def _readme_load_code(bundle) -> str:
+    text = (bundle / README_FILE).read_text()
+    section = text.split("## Loading the behaviours", 1)[1]
+    return re.search(r"```python\n(.*?)```", section, flags=re.S).group(1)
+
+
+def test_readme_load_call_loads_the_programs(odd_bundle, monkeypatch) -> None:
+    """The README's code, run as written in the bundle directory, loads the three programs,
+    and their actions are the numpy greedy policies'."""
+    monkeypatch.chdir(odd_bundle)
+    namespace: dict = {}
+    exec(compile(_readme_load_code(odd_bundle), "README.md", "exec"), namespace)
+    programs, states = namespace["programs"], namespace["states"]
+    np.testing.assert_array_equal(
+        namespace["commands"], GreedyPolicy(load_values("forage")).act(states)
+    )
+    x = np.concatenate([np.random.default_rng(4).random((2000, 2)), [[0.0, 0.0], [1.0, 1.0]]])
+    for name in ("mate", "forage", "search"):
+        expected = GreedyPolicy(load_values(name)).act(x)
+        np.testing.assert_array_equal(programs[name](torch.from_numpy(x)).numpy(), expected)
+        assert len(set(expected.tolist())) >= 3  # a real comparison
+
+
+def test_rewriting_a_bundle_replaces_it_whole(odd_bundle, tmp_path) -> None:
+    out = tmp_path / "b"
+    write_bundle(out, [Genome(np.zeros(39))], config=ODD)
+    (out / "stale.txt").write_text("from an older bundle")
+    write_bundle(out, [Genome(np.ones(39))], config=ODD)
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in odd_bundle.iterdir())
+    np.testing.assert_array_equal(np.load(out / WEIGHTS_FILE), np.ones((1, 39)))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b"]  # no temporaries left
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "mine.txt").write_text("keep")
+    with pytest.raises(ValueError, match="non-empty directory without bundle.json"):
+        write_bundle(tmp_path / "notes", [Genome(np.zeros(39))])
+    assert [p.name for p in (tmp_path / "notes").iterdir()] == ["mine.txt"]
+
+
+# --- which agents: mated only by default --------------------------------------------------
+def _individual(fitness: float, mated: bool, slot: int) -> Individual:
+    return Individual(Genome(np.full(39, float(slot))), fitness, mated, 0, slot)
+
+
+def test_choose_agents_takes_the_fittest_that_mated() -> None:
+    # fittest first; the three fittest never mated (what the old choice bundled)
+    ranked = [_individual(7.0, False, 0), _individual(7.0, False, 1), _individual(6.0, False, 2),
+              _individual(3.5, True, 3), _individual(2.0, False, 4), _individual(1.5, True, 5)]
+    chosen = choose_agents(ranked, 3, source="test")
+    assert [a.slot for a in chosen.agents] == [3, 5]
+    assert chosen.short and (chosen.requested, chosen.ranked, chosen.mated) == (3, 6, 2)
+    assert chosen.note() == (
+        "2 fittest that mated of 6 ranked agents (test; 2 mated); 3 were requested, only 2 "
+        "qualified"
+    )
+    assert [a.slot for a in choose_agents(ranked, 1).agents] == [3]
+    old = choose_agents(ranked, 3, include_unmated=True)
+    assert [a.slot for a in old.agents] == [0, 1, 2] and not old.short
+    nobody = choose_agents(ranked[:3], 2)
+    assert nobody.agents == () and nobody.mated == 0
+    with pytest.raises(ValueError, match=r"top must be an integer in \[1, 6\], got 7"):
+        choose_agents(ranked, 7)
+
+
+# --- the command line on tiny runs ---------------------------------------------------------
+TINY = RunConfig(evolution=EvolutionConfig(
+    population_size=8, n_robots=4, lifetime_steps=200, time_sharing_steps=50
+))  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """One generation of 8 agents (seed 1: 2 of the 8 completed lives mated)."""
+    from evolution.api import run as run_evolution
+
+    out = tmp_path_factory.mktemp("runs") / "tiny"
+    run_evolution("ee", 1, 1, config=TINY, out_dir=out)
+    return out
+
+
+def test_cli_bundles_only_mated_agents_and_says_so(tiny_run, tmp_path, capsys) -> None:
+    out = tmp_path / "bundle"
+    assert main(["--from", str(tiny_run), "--top", "5", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "5 were requested, only 2 qualified" in printed
+    spec = json.loads((out / BUNDLE_FILE).read_text())
+    agents = spec["provenance"]["agents"]
+    assert len(agents) == 2 and all(a["mated"] for a in agents)
+    assert spec["selection"]["mated_only"] and spec["selection"]["bundled"] == 2
+    assert np.load(out / WEIGHTS_FILE).shape == (2, 39)
+    record = json.loads((tiny_run / "run.json").read_text())
+    assert spec["run_config"] == record["config"]
+    assert spec["control"]["dt_s"] == record["config"]["survival"]["control_dt"] == 0.2
+    assert "5 were requested, only 2 qualified" in (out / README_FILE).read_text()
+    # the old choice, on request, through the mountable pair
+    parser = argparse.ArgumentParser(prog="cyber-rodent deploy")
+    add_arguments(parser)
+    args = parser.parse_args(
+        ["--from", str(tiny_run), "--top", "5", "--include-unmated", "--out", str(out)]
+    )
+    assert run(args) == 0
+    agents = json.loads((out / BUNDLE_FILE).read_text())["provenance"]["agents"]
+    assert len(agents) == 5 and not all(a["mated"] for a in agents)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--top", "0"], r"--top must be an integer in \[1, ∞\), got '0'"),
+        (["--top", "two"], r"--top must be an integer in \[1, ∞\), got 'two'"),
+        (["--top", "9"], r"--top must be an integer in \[1, 8\] \(completed lives of generation "
+                         r"0 of gen_00001.ckpt\), got 9"),
+        (["--generation", "-1"], r"--generation must be an integer in \[0, ∞\), got '-1'"),
+        (["--generation", "7"], r"--generation: .* no checkpoint of generation 7 \(available: "
+                                r"1\)"),
+        (["--out", "FILE"], r"--out .*file\.txt is a file; it must be a new directory"),
+        (["--out", "NOTES"], r"--out .*notes is a non-empty directory without bundle.json"),
+        (["--from", "NOWHERE"], r"--from: .*nowhere is not a run directory"),
+    ],
+)  # fmt: skip
+def test_cli_bad_input_is_one_line_and_leaves_nothing(
+    tiny_run, tmp_path, capsys, argv, message
+) -> None:
+    (tmp_path / "file.txt").write_text("mine")
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "mine.txt").write_text("mine")
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    places = {"FILE": tmp_path / "file.txt", "NOTES": tmp_path / "notes",
+              "NOWHERE": tmp_path / "nowhere"}  # fmt: skip
+    argv = [str(places.get(a, a)) for a in argv]
+    full = {"--from": str(tiny_run), "--out": str(tmp_path / "bundle")}
+    full.update(dict(zip(argv[::2], argv[1::2], strict=True)))
+    assert main([x for kv in full.items() for x in kv]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("python -m evolution.deploy: error: "), err
+    assert re.search(message, err), err
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+
+
+def test_cli_refuses_a_run_where_no_agent_mated(tmp_path, capsys) -> None:
+    from evolution.api import run as run_evolution
+
+    config = RunConfig(evolution=EvolutionConfig(
+        population_size=4, n_robots=2, lifetime_steps=40, time_sharing_steps=20
+    ))  # fmt: skip
+    config = config.replace(
+        survival=dataclasses.replace(config.survival, mate_consecutive_steps=1000)
+    )
+    run_evolution("ee", 1, 1, config=config, out_dir=tmp_path / "run")
+    out = tmp_path / "bundle"
+    assert main(["--from", str(tmp_path / "run"), "--top", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "none of the 4 agents ranked" in err and "--include-unmated" in err
+    assert not out.exists()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+import re
 import subprocess
 import sys
 
@@ -13,8 +15,11 @@ torch = pytest.importorskip("torch")
 from behaviours.action_values import ActionValues  # noqa: E402
 from behaviours.export import (  # noqa: E402
     TileCodedGreedyPolicy,
+    add_arguments,
     export_greedy_policy,
     load_exported_policy,
+    main,
+    run,
 )
 from behaviours.greedy_policy import GreedyPolicy  # noqa: E402
 from behaviours.tile_coding import TileCoderConfig  # noqa: E402
@@ -106,3 +111,41 @@ def test_core_does_not_import_torch():
     )
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_command_exports_through_the_mountable_pair(tmp_path, capsys):
+    from behaviours.definitions import load_values
+
+    parser = argparse.ArgumentParser(prog="cyber-rodent export")
+    add_arguments(parser)
+    assert run(parser.parse_args(["--out", str(tmp_path / "out")])) == 0
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "forage.pt2", "mate.pt2", "search.pt2"
+    ]  # no temporaries left
+    x = np.random.default_rng(6).random((500, 2))
+    module = torch.export.load(tmp_path / "out" / "mate.pt2").module()  # the documented call
+    assert np.array_equal(module(torch.from_numpy(x)).numpy(),
+                          GreedyPolicy(load_values("mate")).act(x))  # fmt: skip
+    assert "mate: wrote" in capsys.readouterr().out
+
+
+def test_command_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
+    from behaviours.definitions import values_path
+
+    (tmp_path / "file").write_text("mine")
+    partial = tmp_path / "partial"
+    partial.mkdir()
+    (partial / "mate.npz").write_bytes(values_path("mate").read_bytes())  # forage is missing
+    cases = [
+        (["--out", str(tmp_path / "file")], "--out .*file is a file"),
+        (["--out", str(tmp_path / "new"), "--values", str(tmp_path / "none")],
+         "--values .*none is not a directory; it must hold mate.npz, forage.npz and search.npz"),
+        (["--out", str(tmp_path / "new"), "--values", str(partial)], "forage"),
+    ]  # fmt: skip
+    for argv, message in cases:
+        before = sorted(tmp_path.rglob("*"))
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("python -m behaviours.export: error: ")
+        assert re.search(message, err), err
+        assert sorted(tmp_path.rglob("*")) == before

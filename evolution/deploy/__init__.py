@@ -7,36 +7,45 @@ A bundle is a directory:
   wheel command index);
 - ``controller_weights.npy``: (n_agents, 39) float64 genomes of the agents to run (layout:
   recharge weights ``[0:3]``, selection weights ``[3:39]`` output-major);
-- ``bundle.json``: format and package versions, the controller's input order, every
-  normalisation constant (energy, recharge steps, vision distance, range-sensor ranges and
-  which sensors are the six proximity sensors), the wheel command table, the behaviours' input
-  definitions and the values' checksums, and where the agents came from;
+- ``bundle.json``: the control period, the robot frame and sign conventions, the sensors'
+  geometry and units, every input's normalisation, the controller, the wheel command table, the
+  exact torch version and the load call, the survival bookkeeping a robot runs itself (energy,
+  recharging, reflex, time sharing, IR mating), how the agents were chosen and the run's whole
+  resolved config (:mod:`evolution.deploy.spec`);
+- ``README.md``: the same for a reader, with runnable loading code and the bookkeeping as
+  pseudo-code (:mod:`evolution.deploy.readme`);
 - ``reference_step.py``: a plain-Python reference of one control step that loads the bundle with
   numpy and torch only (:mod:`evolution.deploy.reference_step`, copied verbatim).
 
-:func:`record_decisions` records a simulated run's raw observations and decisions, which
-``tests/test_deploy.py`` replays through the reference step to show that both decide alike.
+A bundle is written into a temporary directory beside its destination and renamed into place,
+so a failure never leaves a half-written bundle. :func:`record_decisions` records a simulated
+run's raw observations and decisions, which ``tests/test_deploy.py`` replays through the
+reference step to show that both decide alike.
 """
 
 from __future__ import annotations
 
-import hashlib
+import contextlib
 import json
 import os
 import shutil
-from collections.abc import Sequence
-from importlib import metadata
+import tempfile
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cyber_rodent.atomic import write_text
-from evolution.genome import RECHARGE, SELECTION, Genome
+from cyber_rodent.atomic import TEMP_MARK, write_text
+from evolution.deploy.spec import BUNDLE_FORMAT, bundle_spec
+from evolution.genome import Genome
 
-#: Bundle layout version (``bundle.json`` ``format``); the reference step checks it.
-BUNDLE_FORMAT = 1
+if TYPE_CHECKING:
+    from behaviours.action_values import ActionValues
+    from evolution.runner.config import RunConfig
+
 BUNDLE_FILE = "bundle.json"
+README_FILE = "README.md"
 WEIGHTS_FILE = "controller_weights.npy"
 REFERENCE_FILE = "reference_step.py"
 _REFERENCE_SOURCE = Path(__file__).with_name(REFERENCE_FILE)
@@ -62,107 +71,116 @@ def _genome_matrix(genomes: Sequence[Genome] | np.ndarray) -> np.ndarray:
     return matrix
 
 
+def check_bundle_dir(out: str | os.PathLike[str], option: str = "out") -> Path:
+    """``out`` as a path a bundle may be written to, checked without touching the disk.
+
+    A bundle goes to a new or empty directory, or replaces an earlier bundle (a directory with
+    ``bundle.json``); anything else is refused, so no user file is ever deleted.
+
+    Raises:
+        ValueError: ``out`` is a file, or a non-empty directory that holds no bundle.
+    """
+    path = Path(out).expanduser()
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{option} {path} is a file; it must be a new directory, an empty "
+                         "one or an earlier bundle")  # fmt: skip
+    if path.is_dir() and any(path.iterdir()) and not (path / BUNDLE_FILE).is_file():
+        raise ValueError(
+            f"{option} {path} is a non-empty directory without {BUNDLE_FILE}; it must be a "
+            "new directory, an empty one or an earlier bundle"
+        )
+    return path
+
+
+@contextlib.contextmanager
+def staged_directory(target: Path) -> Iterator[Path]:
+    """Yield a temporary directory beside ``target``; on success it replaces ``target``.
+
+    The temporary is named like :mod:`cyber_rodent.atomic`'s temporaries; on any exception it
+    is deleted and ``target`` is left as it was. An earlier ``target`` is moved aside, the new
+    one renamed into place, and the old one deleted.
+    """
+    target.parent.mkdir(parents=True, exist_ok=True)
+    temp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=TEMP_MARK, dir=target.parent))
+    try:
+        yield temp
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(temp, 0o777 & ~mask)  # mkdtemp makes it owner-only
+        old = None
+        if target.exists():
+            old = temp.with_name(f"{temp.name}.old")
+            os.replace(target, old)
+        try:
+            os.replace(temp, target)
+        except BaseException:
+            if old is not None:
+                os.replace(old, target)
+            raise
+    except BaseException:
+        shutil.rmtree(temp, ignore_errors=True)
+        raise
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
 def write_bundle(
     out: str | os.PathLike[str],
     genomes: Sequence[Genome] | np.ndarray,
     *,
+    config: RunConfig | None = None,
+    values: Mapping[str, ActionValues] | None = None,
     values_dir: str | os.PathLike[str] | None = None,
-    max_energy: float = 200.0,
-    max_recharge_steps: int = 40,
+    selection: dict[str, Any] | None = None,
     provenance: dict[str, Any] | None = None,
 ) -> Path:
     """Write a deployment bundle (see the module docstring) and return its directory.
 
     Args:
-        out: the bundle directory (created; existing bundle files are replaced).
+        out: the bundle directory: new, empty, or an earlier bundle (replaced as a whole).
         genomes: the agents' controller weights, (n, 39) or Genome objects.
-        values_dir: the behaviours' action values (default: the shipped ones).
-        max_energy, max_recharge_steps: the controller's normalisation (paper: 200, 40).
-        provenance: free-form description of where the agents came from (run, generation).
+        config: the run's resolved configuration; every number of the bundle comes from it
+            (default: the paper's, ``RunConfig()``).
+        values: the behaviours' action values by name (the run's own); default: loaded from
+            ``values_dir``.
+        values_dir: where to load the values from (default: the shipped ones).
+        selection: how the agents were chosen (``bundle.json`` ``selection``).
+        provenance: where the agents came from (run, checkpoint, per-agent records).
 
     Raises:
-        ValueError: bad genomes or normalisation constants.
+        ValueError: bad genomes, config or destination (nothing is written).
         FileNotFoundError: the behaviours' values are missing.
     """
+    from behaviours.definitions import load_values
     from behaviours.export import export_greedy_policy
     from behaviours.inputs import BEHAVIOUR_NAMES
-    from cyber_rodent import constants as C
-    from cyber_rodent.commands import COMMAND_SET_VERSION, WHEEL_COMMANDS
-    from cyber_rodent.vision.types import DEFAULT_MAX_DISTANCE
-    from evolution.controller import INPUT_NAMES
+    from evolution.runner.config import RunConfig
 
     matrix = _genome_matrix(genomes)
-    if not (isinstance(max_energy, int | float) and max_energy > 0):
-        raise ValueError(f"max_energy must be in (0, ∞), got {max_energy!r}")
-    if isinstance(max_recharge_steps, bool) or not (
-        isinstance(max_recharge_steps, int) and max_recharge_steps > 0
-    ):
-        raise ValueError(
-            f"max_recharge_steps must be an integer in [1, ∞), got {max_recharge_steps!r}"
-        )
-    from behaviours.definitions import load_values
-
-    root = Path(out)
-    root.mkdir(parents=True, exist_ok=True)
-    files, checksums = {}, {}
-    for name in BEHAVIOUR_NAMES:
-        values = load_values(name, values_dir)
-        path = export_greedy_policy(values, root / f"{name}.pt2")
-        files[name] = path.name
-        checksums[name] = values.checksum
-    np.save(root / WEIGHTS_FILE, matrix)
-    shutil.copyfile(_REFERENCE_SOURCE, root / REFERENCE_FILE)
-    try:
-        package_version = metadata.version("cyber-rodent")
-    except metadata.PackageNotFoundError:  # pragma: no cover - editable installs have one
-        package_version = None
-    spec = {
-        "format": BUNDLE_FORMAT,
-        "package_version": package_version,
-        "command_set_version": COMMAND_SET_VERSION,
-        "controller": {
-            "file": WEIGHTS_FILE,
-            "n_agents": int(matrix.shape[0]),
-            "weights_sha256": hashlib.sha256(matrix.tobytes()).hexdigest(),
-            "input_order": list(INPUT_NAMES),
-            "outputs": ["mate", "forage", "search"],
-            "recharge_weights": [RECHARGE.start, RECHARGE.stop],
-            "selection_weights": [SELECTION.start, SELECTION.stop],
-            "selection_layout": "output-major (3, 12): row = output, column = input_order",
-            "recharge_rule": "w0*energy/max_energy + w1*steps/max_recharge_steps + w2 <= 0: "
-            "continue recharging",
-            "led_rule": "on iff activation(mate) > activation(forage); dark while recharging",
-        },
-        "normalisation": {
-            "max_energy": float(max_energy),
-            "max_recharge_steps": int(max_recharge_steps),
-            "max_distance": float(DEFAULT_MAX_DISTANCE),
-            "range_sensors": [name for name, _, _ in C.RANGE_SENSORS],
-            "range_max": [float(C.RANGE_SENSORS[i][2]) for i in C.PROXIMITY_SIX],
-            "proximity_sensors": list(C.PROXIMITY_SIX),
-            "proximity": "clip(1 - range / range_max, 0, 1)",
-            "bearing": "clip((bearing_rad + pi) / (2 pi), 0, 1); unseen: bearing 0",
-            "distance": "clip(distance_m / max_distance, 0, 1); unseen: 1",
-        },
-        "behaviours": {
-            "order": list(BEHAVIOUR_NAMES),
-            "files": files,
-            "values_sha256": checksums,
-            "inputs": {
-                "mate": "(bearing, distance) of the nearest green LED if seen, else the nearest "
-                "red face",
-                "forage": "(bearing, distance) of the nearest blue battery pack",
-                "search": "(largest, second largest) of the six proximity readings",
-            },
-        },
-        "commands": {
-            "names": [c.name for c in WHEEL_COMMANDS],
-            "speeds": [[c.left, c.right] for c in WHEEL_COMMANDS],
-            "unit": "wheel rim speed, m/s (left, right)",
-        },
-        "provenance": provenance or {},
+    if config is None:
+        config = RunConfig()
+    if not isinstance(config, RunConfig):
+        raise ValueError(f"config must be a RunConfig, got {type(config).__name__}")
+    root = check_bundle_dir(out)
+    chosen = {
+        name: values[name] if values is not None else load_values(name, values_dir)
+        for name in BEHAVIOUR_NAMES
     }
-    write_text(root / BUNDLE_FILE, json.dumps(spec, indent=2, sort_keys=True, default=repr) + "\n")
+    with staged_directory(root.absolute()) as temp:
+        files, checksums = {}, {}
+        for name, action_values in chosen.items():
+            files[name] = export_greedy_policy(action_values, temp / f"{name}.pt2").name
+            checksums[name] = action_values.checksum
+        np.save(temp / WEIGHTS_FILE, matrix)
+        shutil.copyfile(_REFERENCE_SOURCE, temp / REFERENCE_FILE)
+        spec = bundle_spec(
+            config, matrix, files, checksums, selection=selection, provenance=provenance
+        )
+        text = json.dumps(spec, indent=2, sort_keys=True, default=repr) + "\n"
+        write_text(temp / BUNDLE_FILE, text)
+        from evolution.deploy.readme import render_readme
+
+        write_text(temp / README_FILE, render_readme(json.loads(text)))
     return root
 
 
@@ -211,8 +229,11 @@ def record_decisions(runner: Any, steps: int) -> dict[str, np.ndarray]:
 __all__ = [
     "BUNDLE_FILE",
     "BUNDLE_FORMAT",
+    "README_FILE",
     "REFERENCE_FILE",
     "WEIGHTS_FILE",
+    "check_bundle_dir",
     "record_decisions",
+    "staged_directory",
     "write_bundle",
 ]

@@ -23,6 +23,10 @@ One step, for one robot (the simulator's ``EvolutionRunner.step`` for each robot
    largest and second largest proximity) to a wheel command index; ``commands`` gives the wheel
    rim speeds in m/s.
 
+The survival bookkeeping around this step (energy, recharging, the rotation reflex, time
+sharing between the agents, the IR mating exchange) is the robot's own; the bundle's
+``README.md`` gives it as pseudo-code with the run's numbers (``bundle.json`` ``survival``).
+
 Usage::
 
     from reference_step import ReferenceController

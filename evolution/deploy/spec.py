@@ -1,0 +1,336 @@
+"""The content of a bundle's ``bundle.json``: everything a robot engineer needs, from one source.
+
+Every number comes from the run's resolved :class:`~evolution.runner.RunConfig`, from
+:mod:`cyber_rodent.constants`, from the command table or from the robot's compiled MJCF model
+(sensor positions); the README (:mod:`evolution.deploy.readme`) is rendered from this dict
+only, so the two cannot disagree. The meaning of the rules is docs/design.md §4 (the robot),
+§5 (the paper's rules) and §9 (the choices where the paper is silent).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+import platform
+from importlib import metadata
+from typing import Any
+
+import numpy as np
+
+from evolution.runner.config import RunConfig
+
+#: Bundle layout version (``bundle.json`` ``format``); the reference step checks it.
+BUNDLE_FORMAT = 1
+#: The distributions whose versions a bundle records (torch's is the one that matters: a
+#: ``.pt2`` program is loaded with the torch version that wrote it).
+RECORDED_DISTRIBUTIONS = ("cyber-rodent", "torch", "numpy", "mujoco")
+#: How to load one exported behaviour (the README shows it as runnable code).
+LOAD_CALL = "torch.export.load(path).module()"
+
+
+def _version(distribution: str) -> str | None:
+    try:
+        return metadata.version(distribution)
+    except metadata.PackageNotFoundError:  # pragma: no cover - depends on the installation
+        return None
+
+
+def _rounded(values: Any, digits: int = 6) -> list[float]:
+    """Model numbers as the MJCF file writes them (float32 in the compiled model)."""
+    return [round(float(v), digits) + 0.0 for v in values]
+
+
+def robot_geometry() -> dict[str, Any]:
+    """Sensor, camera and IR-port poses in the robot frame, read from the compiled robot model.
+
+    Returns:
+        ``rangefinders`` (per sensor of :data:`cyber_rodent.constants.RANGE_SENSORS`, in
+        reading order: name, angle, range, position, direction), ``camera`` and ``ir_port``
+        (position, direction).
+    """
+    import mujoco
+
+    from cyber_rodent import constants as C
+    from cyber_rodent.assets import asset_path
+
+    model = mujoco.MjModel.from_xml_path(str(asset_path(C.ROBOT_XML)))
+
+    def pose(site: str) -> tuple[list[float], list[float]]:
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
+        if i < 0:
+            raise ValueError(f"the robot model has no site {site!r}")
+        matrix = np.zeros(9)
+        mujoco.mju_quat2Mat(matrix, model.site_quat[i])
+        position = model.site_pos[i] + model.body_pos[model.site_bodyid[i]]
+        return _rounded(position), _rounded(matrix.reshape(3, 3)[:, 2], 4)
+
+    rangefinders = []
+    for index, (name, angle, reach) in enumerate(C.RANGE_SENSORS):
+        position, direction = pose(name)
+        rangefinders.append(
+            {
+                "index": index,
+                "name": name,
+                "angle_deg": float(angle),
+                "range_max_m": float(reach),
+                "position_m": position,
+                "direction": direction,
+                "proximity_input": (
+                    C.PROXIMITY_SIX.index(index) if index in C.PROXIMITY_SIX else None
+                ),
+            }
+        )
+    camera_position, _ = pose(C.CAMERA_MOUNT_SITE)
+    port_position, port_direction = pose(C.IR_PORT_SITE)
+    return {
+        "rangefinders": rangefinders,
+        "camera_position_m": camera_position,
+        "ir_port": {"position_m": port_position, "direction": port_direction},
+    }
+
+
+def _controller_inputs(config: RunConfig, max_distance: float) -> list[dict[str, Any]]:
+    """The 12 controller inputs in order, each with its normalisation spelled out."""
+    from cyber_rodent import constants as C
+    from evolution.controller import INPUT_NAMES
+
+    evo = config.evolution
+    rules = {
+        "energy": f"energy / {evo.max_energy:g} (the active agent's energy)",
+        "face_distance": f"clip(distance_m / {max_distance:.6g}, 0, 1) of the nearest red face; "
+        "1 if none is seen",
+        "led_distance": f"clip(distance_m / {max_distance:.6g}, 0, 1) of the nearest green LED; "
+        "1 if none is seen",
+        "battery_distance": f"clip(distance_m / {max_distance:.6g}, 0, 1) of the nearest blue "
+        "battery pack; 1 if none is seen",
+        "bias": "1",
+        "led_previous": "1 if the robot's own LED was lit during the previous control step, "
+        "else 0 (after an agent switch: the LED the previous agent left)",
+    }
+    for sensor in C.PROXIMITY_SIX:
+        name, _, reach = C.RANGE_SENSORS[sensor]
+        rules[f"proximity_{name.removeprefix('range_')}"] = (
+            f"clip(1 - range[{sensor}] / {reach:g}, 0, 1) ({name}; 0 = nothing in range, "
+            "1 = touching)"
+        )
+    missing = [n for n in INPUT_NAMES if n not in rules]
+    if missing:  # a new input needs its normalisation written down here
+        raise RuntimeError(f"controller inputs without a stated normalisation: {missing}")
+    return [{"index": i, "name": n, "value": rules[n]} for i, n in enumerate(INPUT_NAMES)]
+
+
+def _survival(config: RunConfig, half_wheel_base: float) -> dict[str, Any]:
+    """The bookkeeping a robot runs itself: energy, recharging, reflex, time sharing, mating."""
+    from cyber_rodent.survival.energy import recharge_gain
+
+    s, evo = config.survival, config.evolution
+    dt = s.control_dt
+    turn = s.reflex_wheel_speed * dt / half_wheel_base
+    return {
+        "energy": {
+            "initial": s.initial_energy,
+            "max": s.max_energy,
+            "decay_per_step": s.energy_decay,
+            "recharge_rate_per_step": s.recharge_rate,
+            "decay_while_recharging": s.decay_while_recharging,
+            "recharge_gain_per_step": recharge_gain(s),
+            "death": "a step's decay that brings the energy to 0 or below kills the agent "
+            "(energy set to 0); recharge steps never decay unless decay_while_recharging",
+        },
+        "recharge": {
+            "max_steps": s.max_recharge_steps,
+            "dock_bearing_tolerance_deg": s.dock_bearing_tolerance_deg,
+            "capture_rule": s.capture_rule,
+            "capture": "each docking counts as one captured battery"
+            if s.capture_rule == "docking"
+            else "a docking counts as a captured battery on its first recharge step (a docking "
+            "whose recharge the controller stops at once does not count)",
+            "ends": "the recharge controller says stop (decided before the step), or after "
+            f"the step that reaches {s.max_recharge_steps} consecutive recharge steps or "
+            f"{s.max_energy:g} energy, or at an agent switch; every end starts the reflex",
+        },
+        "reflex": {
+            "after_recharge": True,
+            "after_mating": s.mate_reflex,
+            "after_switch_while_docked": True,
+            "min_steps": s.reflex_min_steps,
+            "max_steps": s.reflex_max_steps,
+            "wheel_speed_m_s": s.reflex_wheel_speed,
+            "turn_per_step_rad": turn,
+            "turn_deg": [
+                math.degrees(turn * s.reflex_min_steps),
+                math.degrees(turn * s.reflex_max_steps),
+            ],
+            "rule": f"a spin of {s.reflex_min_steps} to {s.reflex_max_steps} steps (uniform) at "
+            f"{s.reflex_wheel_speed:g} m/s rim speed, left (-v, +v) or right (+v, -v) with "
+            "p = 0.5; the controller's wheel commands are ignored, and the robot can neither "
+            "dock nor mate, until it ends",
+        },
+        "time_sharing": {
+            "steps": evo.time_sharing_steps,
+            "lifetime_steps": evo.lifetime_steps,
+            "agents_per_robot_in_run": evo.subpopulation_size,
+            "switch": "to the next agent in round-robin order after "
+            f"{evo.time_sharing_steps} steps of the current agent's slot, or when it mates, "
+            f"dies or completes its {evo.lifetime_steps}-step lifetime",
+        },
+        "mating": {
+            "ir_port_distance_max_m": s.mate_distance,
+            "ir_port_angle_max_deg": s.mate_angle_deg,
+            "consecutive_steps": s.mate_consecutive_steps,
+            "exchange_duration_s": s.mate_consecutive_steps * dt,
+            "signal": "the active agent's chosen behaviour is Mate, and the robot is alive, "
+            "not docked and not in its reflex",
+            "exchanged": "each side sends its active agent's genome (39 float64, "
+            "controller_weights layout) and fitness; each stores the partner's (genome, "
+            "fitness) and counts one mating; both slots end",
+            "partners_per_step": 1,
+        },
+        "fitness": {
+            "time_unit_steps": evo.fitness_time_unit,
+            "rule": f"batteries captured / (steps lived / {evo.fitness_time_unit:g}); 0 before "
+            "the first step",
+        },
+    }
+
+
+def bundle_spec(
+    config: RunConfig,
+    weights: np.ndarray,
+    behaviour_files: dict[str, str],
+    values_sha256: dict[str, str],
+    *,
+    selection: dict[str, Any] | None = None,
+    provenance: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The ``bundle.json`` record of a bundle (see :mod:`evolution.deploy`).
+
+    Args:
+        config: the run's resolved configuration (every rule's number comes from it).
+        weights: (n_agents, 39) the bundled agents' controller weights.
+        behaviour_files: behaviour name → its ``.pt2`` file name.
+        values_sha256: behaviour name → checksum of the action values it was exported from.
+        selection: how the agents were chosen (:meth:`Selection.note` and counts).
+        provenance: where the agents came from (run, checkpoint, per-agent fitness).
+    """
+    import torch
+
+    from behaviours.inputs import BEHAVIOUR_NAMES
+    from cyber_rodent import constants as C
+    from cyber_rodent.commands import COMMAND_SET_VERSION, WHEEL_COMMANDS
+    from cyber_rodent.vision.types import CLASS_NAMES, DEFAULT_MAX_DISTANCE
+    from evolution.controller import INPUT_NAMES
+    from evolution.genome import RECHARGE, SELECTION
+
+    evo, survival, camera = config.evolution, config.survival, config.camera
+    max_distance = float(DEFAULT_MAX_DISTANCE)
+    geometry = robot_geometry()
+    versions = {name: _version(name) for name in RECORDED_DISTRIBUTIONS}
+    versions["torch"] = str(torch.__version__)  # the exact build, e.g. "2.13.0+cpu"
+    versions["python"] = platform.python_version()
+    behaviour_input = "float64 (batch, 2) in [0, 1]; outside [0, 1] or NaN raises RuntimeError"
+    return {
+        "format": BUNDLE_FORMAT,
+        "package_version": versions["cyber-rodent"],
+        "versions": versions,
+        "torch": {
+            "version": versions["torch"],
+            "load": LOAD_CALL,
+            "input": behaviour_input,
+            "output": "int64 (batch,) wheel command index (commands.names)",
+            "note": "torch.export does not promise that another torch version reads these "
+            "programs",
+        },
+        "control": {"dt_s": survival.control_dt, "rate_hz": 1.0 / survival.control_dt},
+        "frame": "robot frame: x forward, y left, z up, origin on the floor under the wheel "
+        "axle; metres",
+        "conventions": {
+            "bearing": "radians in (-pi, pi], 0 straight ahead, positive to the left "
+            "(counter-clockwise seen from above)",
+            "wheel_order": ["left", "right"],
+            "wheel_sign": "positive drives the wheel's rim forward; (-v, +v) spins left "
+            "(counter-clockwise), (+v, -v) right",
+            "wheel_unit": "wheel rim speed, m/s; motor angular speed = speed / wheel_radius_m "
+            "rad/s",
+            "wheel_radius_m": C.WHEEL_RADIUS,
+            "half_wheel_base_m": C.HALF_WHEEL_BASE,
+            "top_speed_m_s": C.TOP_SPEED,
+        },
+        "sensors": {
+            "rangefinders": geometry["rangefinders"],
+            "rangefinder_reading": "metres along the sensor's direction from its position; "
+            "no hit within range_max_m reads range_max_m",
+            "camera": {
+                "type": "omnidirectional, 360 degrees horizontally",
+                "position_m": geometry["camera_position_m"],
+                "elevation_deg": [camera.elevation_min_deg, camera.elevation_max_deg],
+                "max_range_m": camera.max_range,
+                "classes": list(CLASS_NAMES),
+                "targets": {
+                    "led": "another robot's green LED ring (its camera axis)",
+                    "face": "the centre of another robot's red face plate",
+                    "battery": "a blue battery pack's axis",
+                },
+                "per_class": "the nearest target's bearing (rad, robot frame), distance (m, "
+                "horizontal, from the camera axis to the target's vertical axis) and whether "
+                "one is seen",
+                "min_blob_area_px": list(camera.min_blob_area),
+                "noise": dataclasses.asdict(camera.noise),
+            },
+            "ir_port": geometry["ir_port"],
+        },
+        "command_set_version": COMMAND_SET_VERSION,
+        "controller": {
+            "file": "controller_weights.npy",
+            "n_agents": int(weights.shape[0]),
+            "weights_sha256": hashlib.sha256(weights.tobytes()).hexdigest(),
+            "input_order": list(INPUT_NAMES),
+            "inputs": _controller_inputs(config, max_distance),
+            "outputs": list(BEHAVIOUR_NAMES),
+            "recharge_weights": [RECHARGE.start, RECHARGE.stop],
+            "selection_weights": [SELECTION.start, SELECTION.stop],
+            "selection_layout": "output-major (3, 12): row = output, column = input_order",
+            "selection_rule": "activations = W (3 x 12) @ inputs; the available behaviour with "
+            "the largest activation wins (Mate needs an LED or face in view, Forage a battery, "
+            "Search is always available; ties to the lower index)",
+            "recharge_rule": f"w0*energy/{evo.max_energy:g} + "
+            f"w1*steps/{evo.max_recharge_steps} + w2 <= 0: continue recharging",
+            "led_rule": "on iff activation(mate) > activation(forage); dark while recharging",
+        },
+        "normalisation": {
+            "max_energy": float(evo.max_energy),
+            "max_recharge_steps": int(evo.max_recharge_steps),
+            "max_distance": max_distance,
+            "range_sensors": [name for name, _, _ in C.RANGE_SENSORS],
+            "range_max": [float(C.RANGE_SENSORS[i][2]) for i in C.PROXIMITY_SIX],
+            "proximity_sensors": list(C.PROXIMITY_SIX),
+            "proximity": "clip(1 - range / range_max, 0, 1)",
+            "bearing": "clip((bearing_rad + pi) / (2 pi), 0, 1); unseen: bearing 0 rad (0.5)",
+            "distance": f"clip(distance_m / {max_distance:.6g}, 0, 1); unseen: 1",
+        },
+        "behaviours": {
+            "order": list(BEHAVIOUR_NAMES),
+            "files": behaviour_files,
+            "values_sha256": values_sha256,
+            "input": behaviour_input,
+            "inputs": {
+                "mate": "(bearing, distance), normalised, of the nearest green LED if one is "
+                "seen, else of the nearest red face",
+                "forage": "(bearing, distance), normalised, of the nearest blue battery pack",
+                "search": "(largest, second largest) of the six proximity readings",
+            },
+        },
+        "commands": {
+            "names": [c.name for c in WHEEL_COMMANDS],
+            "speeds": [[c.left, c.right] for c in WHEEL_COMMANDS],
+            "unit": "wheel rim speed, m/s (left, right)",
+        },
+        "survival": _survival(config, C.HALF_WHEEL_BASE),
+        "selection": selection or {},
+        "provenance": provenance or {},
+        "run_config": dataclasses.asdict(config),
+    }
+
+
+__all__ = ["BUNDLE_FORMAT", "LOAD_CALL", "bundle_spec", "robot_geometry"]
