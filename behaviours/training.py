@@ -364,9 +364,9 @@ def train(
     curve = np.concatenate([curve[:start], rows])
     bar = None
     if progress:
-        from tqdm import tqdm
+        from cyber_rodent.progress import progress_bar
 
-        bar = tqdm(
+        bar = progress_bar(
             total=episodes,
             initial=min(start, episodes),
             desc=f"train {behaviour}",

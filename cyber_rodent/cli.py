@@ -2,17 +2,21 @@
 
 The only module that may tie the three packages (``cyber_rodent``, ``behaviours``, ``evolution``)
 together; it imports them lazily inside each sub-command so ``--help`` stays fast. User errors
-(bad counts, missing assets, unwritable outputs) print one line and exit with status 2, never a
-traceback.
+(bad counts, missing assets, unwritable outputs, malformed options) print one line,
+``cyber-rodent COMMAND: error: ...``, and exit with status 2, never a traceback or a usage
+block; every input is checked before a file or directory is created. ``--help`` shows every
+option's default.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 if TYPE_CHECKING:  # pandas is slow to import; ``--help`` must stay fast
     import pandas as pd
@@ -22,6 +26,56 @@ EXIT_USAGE = 2
 
 class CliError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
+
+
+class UsageError(CliError):
+    """A malformed command line, found by the parser of ``prog`` (``cyber-rodent evolve``)."""
+
+    def __init__(self, prog: str, message: str) -> None:
+        super().__init__(message)
+        self.prog = prog
+
+
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Each option's default after its help, unless the help states it or there is none (a
+    flag, an option unset by default)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        if "default" in text or default is None or default is False or default == []:
+            return text
+        if default is argparse.SUPPRESS:
+            return text
+        return super()._get_help_string(action)
+
+
+class CliParser(argparse.ArgumentParser):
+    """The parser of the command and of each sub-command (``add_subparsers`` makes its
+    sub-parsers of the parent's class): an error is one line, ``PROG: error: MESSAGE``, with
+    exit status 2 and no usage block, and ``--help`` shows every default."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+        #: The sub-commands' parsers by name (set by :func:`build_parser`).
+        self.commands: Mapping[str, argparse.ArgumentParser] = {}
+
+    def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
+        """An option without help still shows its default in ``--help``."""
+        if kwargs.get("help") is None and args and str(args[0]).startswith("-"):
+            default = kwargs.get("default")
+            if default is not None and default is not False and default != []:
+                kwargs["help"] = "(default: %(default)s)"
+        return super().add_argument(*args, **kwargs)
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(self.prog, message)
+
+
+def _one_line(text: object) -> str:
+    """``text`` on one line (a message from a library may span several)."""
+    return " ".join(str(text).split())
 
 
 def _int_arg(name: str) -> Callable[[str], int]:
@@ -37,7 +91,14 @@ def _int_arg(name: str) -> Callable[[str], int]:
 def _cmd_snapshot(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from cyber_rodent.render import FieldRenderer, check_writable_output, write_png
+    from cyber_rodent.render import (
+        BACKGROUND_RGB,
+        FieldRenderer,
+        annotate_world,
+        check_writable_output,
+        draw_caption,
+        write_png,
+    )
     from cyber_rodent.world import World, WorldConfig
 
     check_writable_output(args.out)  # fail before any expensive work
@@ -52,8 +113,16 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
 
         out = save_omni_png(world, args.robot, args.out)
     else:
-        with FieldRenderer(world, args.size, args.size) as renderer:
-            image = renderer.top_down() if args.robot is None else renderer.robot_view(args.robot)
+        background = None if args.plain else BACKGROUND_RGB
+        with FieldRenderer(world, args.size, args.size, background=background) as renderer:
+            if args.robot is not None:
+                image = renderer.robot_view(args.robot)
+                if not args.plain:
+                    draw_caption(image, f"CR{args.robot} chase view")
+            else:
+                image = renderer.top_down()
+                if not args.plain:  # robot IDs (CRi = --robot i) and heading arrows
+                    annotate_world(image, renderer)
         out = write_png(image, args.out)
     print(f"wrote {out}")
     return 0
@@ -177,8 +246,24 @@ def _report_run(path: Path, table: pd.DataFrame) -> None:
 
 def _cmd_transfer(args: argparse.Namespace) -> int:
     from cyber_rodent.profiles import profile_by_name
+    from cyber_rodent.validation import check_integer
+    from cyber_rodent.world import MAX_ROBOTS
+    from evolution.config import MAX_GENERATIONS, MAX_POPULATION
     from evolution.transfer import ROBOT_STATISTICS_FILE, transfer
 
+    # The numbers and paths first: transfer() reads the source checkpoint before its own checks.
+    check_integer("--generation", args.generation, 0, MAX_GENERATIONS)
+    check_integer("--top", args.top, 1, MAX_POPULATION)
+    check_integer("--robots", args.robots, 1, MAX_ROBOTS)
+    check_integer("--agents-per-robot", args.agents_per_robot, 1, MAX_POPULATION // args.robots)
+    check_integer("--generations", args.generations, 1, MAX_GENERATIONS)
+    check_integer("--seed", args.seed, 0)
+    source, out = Path(args.source), Path(args.out)
+    if not source.is_dir():
+        what = "is a file, not a run directory" if source.exists() else "no such run directory"
+        raise CliError(f"--from {source}: {what}")
+    if out.exists() and not out.is_dir():
+        raise CliError(f"--out {out} is a file, not a directory")
     profile = profile_by_name(args.profile)
     result = transfer(
         args.source,
@@ -227,11 +312,30 @@ def _cmd_resume(args: argparse.Namespace) -> int:
     return 0
 
 
+def _duration(seconds: float) -> str:
+    """A duration in words: seconds, minutes, hours or days."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 90 * 60:
+        return f"{seconds / 60:.0f} min"
+    if seconds < 48 * 3600:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 86400:.1f} days"
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
+    from cyber_rodent.validation import check_integer
     from evolution import experiment
     from evolution.grid import check_grid
     from evolution.settings import parse_grid
-    from evolution.sweep import SweepSpec, check_ray_address, parse_seeds, sweep
+    from evolution.sweep import (
+        STEP_SECONDS,
+        SweepSpec,
+        check_ray_address,
+        parse_seeds,
+        projected_seconds,
+        sweep,
+    )
 
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     spec = SweepSpec(
@@ -246,12 +350,21 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if args.resume:
         check_grid(args.out, spec.grid)
     experiment.policies_by_name(args.policies)  # the shipped values are installed
-    if args.workers is not None and args.workers < 1:
-        raise CliError(f"--workers must be >= 1, got {args.workers}")
+    if args.workers is not None:
+        check_integer("--workers", args.workers, 1, 4096)
     executor = "ray" if args.ray is not None else "local"
     if executor == "ray":
         check_ray_address(args.ray)  # before anything is written
+    workers = args.workers or os.cpu_count() or 1
     out = experiment.prepare_sweep_dir(args.out, resume=args.resume, force=args.force)
+    seconds = projected_seconds(spec, workers)
+    print(
+        f"sweep: {len(spec.runs)} runs x {spec.generations} generations on {workers} "
+        f"workers; projected run time about {_duration(seconds)} (an estimate from the "
+        f"config and a documented rate of ~{1 / STEP_SECONDS:,.0f} control steps/s per core"
+        f"{'; less what is already done' if args.resume else ''})",
+        flush=True,
+    )
     try:
         results = sweep(
             spec,
@@ -275,26 +388,53 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _cmd_plot(args: argparse.Namespace) -> int:
     from evolution import experiment
 
+    if not Path(args.dir).is_dir():
+        what = "is a file, not" if Path(args.dir).exists() else "is not"
+        raise CliError(f"{args.dir} {what} a run or sweep directory")
+    if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise CliError(f"--out {args.out} is a file, not a directory")
     for path in experiment.plot_run_dir(args.dir, args.out):
         print(f"wrote {path}")
     return 0
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from evolution import experiment
+    from evolution import experiment, video
 
     if (args.dir is None) == (args.checkpoint is None):
         raise CliError("give a run directory or --checkpoint FILE (one of them)")
+    # Every option is checked (one line naming it and its range) before any file is written.
+    default = video.VideoConfig()
+    width, height = (
+        (default.width, default.height) if args.size is None else video.parse_size(args.size)
+    )
+    camera = video.parse_camera(args.camera)
+    frames = video.parse_integer_option("--frames", args.frames, 1, video.MAX_FRAMES)
+    source = args.dir if args.dir is not None else args.checkpoint
+    if args.start is not None:
+        start = video.parse_integer_option("--start", args.start, 0, float("inf"))
+        if args.dir is None:
+            raise CliError("--start picks a run directory's checkpoint; give DIR, not --checkpoint")
+        source = video.start_checkpoint(args.dir, start)
+    robots = video.run_robot_count(source)
+    if robots is not None:  # else the video checks it once the checkpoint is loaded
+        video.check_camera_robot(camera, robots)
     out = experiment.render_run(
-        args.dir if args.dir is not None else args.checkpoint,
+        source,
         args.out,
-        frames=args.frames,
+        frames=frames,
         fps=args.fps,
         steps_per_frame=args.steps_per_frame,
         progress=not args.no_progress,
+        width=width,
+        height=height,
+        camera=str(camera),
     )
     print(f"wrote {out}")
     return 0
+
+
+_NO_PROGRESS = "no progress output (a bar on a terminal, otherwise a line a minute on stderr)"
 
 
 def _add_setting_options(p: argparse.ArgumentParser) -> None:
@@ -323,16 +463,41 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--resume", action="store_true", help="continue the run(s) in --out")
     p.add_argument("--force", action="store_true", help="replace the run(s) in --out")
-    p.add_argument("--no-progress", action="store_true", help="hide progress bars")
+    p.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+#: Sub-commands whose options and entry point live in their own module,
+#: ``add_arguments(parser)`` and ``run(args) -> int``: name → (module, one-line summary).
+MOUNTED: dict[str, tuple[str, str]] = {
+    "view": (
+        "evolution.viewer",
+        "watch a run, a checkpoint or a task live in MuJoCo's interactive viewer",
+    ),
+    "deploy": (
+        "evolution.deploy.__main__",
+        "write a deployment bundle of a run's fittest mated agents for a real robot",
+    ),
+    "export": (
+        "behaviours.export",
+        "export the learned behaviours as torch.export programs (.pt2)",
+    ),
+}
+
+
+def _command_of(argv: Sequence[str]) -> str | None:
+    """The sub-command of a command line: its first word that is not an option."""
+    return next((word for word in argv if not word.startswith("-")), None)
+
+
+def build_parser(command: str | None = None) -> CliParser:
+    """The command-line parser; ``command`` (a :data:`MOUNTED` name) also gets its options."""
+    parser = CliParser(
         prog="cyber-rodent",
         description="Cyber Rodent colony simulation: embodied evolution of survival in MuJoCo.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
+    parser.commands = sub.choices
 
     snap = sub.add_parser(
         "snapshot",
@@ -354,6 +519,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--omni",
         action="store_true",
         help="with --robot: save its omnidirectional image and segmentation",
+    )
+    snap.add_argument(
+        "--plain",
+        action="store_true",
+        help="the bare render: no robot IDs (CRi = robot i), heading arrows or caption, and "
+        "empty space left black",
     )
     snap.set_defaults(func=_cmd_snapshot)
 
@@ -379,7 +550,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--resume", action="store_true", help="continue from the checkpoint in --out"
     )
-    train.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    train.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS)
     train.add_argument(
         "--profile",
         default="sim",
@@ -414,14 +585,19 @@ def build_parser() -> argparse.ArgumentParser:
         "versions, statistics.csv, events.csv, checkpoints, figures). With no arguments: a "
         "short EE run (5 generations) that finishes in minutes.",
     )
-    evolve.add_argument("--method", default="ee", choices=("ee", "ce"))
+    evolve.add_argument(
+        "--method",
+        default="ee",
+        choices=("ee", "ce"),
+        help="ee: embodied evolution; ce: the centralised GA (the paper's baseline)",
+    )
     evolve.add_argument(
         "--generations",
         type=_int_arg("--generations"),
         default=5,
         help="generations to complete (default 5; the paper: 120)",
     )
-    evolve.add_argument("--seed", type=_int_arg("--seed"), default=0)
+    evolve.add_argument("--seed", type=_int_arg("--seed"), default=0, help="the run's seed")
     evolve.add_argument(
         "--out", default=None, help="run directory (default: runs/<method>-seed<S>-<timestamp>)"
     )
@@ -454,7 +630,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="new target (default: the run's own)",
     )
-    resume.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    resume.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS)
     resume.set_defaults(func=_cmd_resume)
 
     sweep = sub.add_parser(
@@ -463,11 +639,18 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run every method x seed (x grid cell), one process per run (or one Ray "
         "task per run with --ray), each in <out>/<method>-seed<NNN> (with --grid: "
         "<out>/<cell>/<method>-seed<NNN>); failed runs are retried from their last "
-        "checkpoint. Results are identical whichever executor ran them.",
+        "checkpoint. Results are identical whichever executor ran them. With only --out it "
+        "runs the paper's Fig. 6 experiment (EE and CE x seeds 0-19 x 120 generations: "
+        "hours); the projected run time is printed before the runs start.",
     )
     sweep.add_argument("--methods", default="ee,ce", help="comma list of ee, ce")
     sweep.add_argument("--seeds", default="0-19", help="seeds: N, A-B or a comma list")
-    sweep.add_argument("--generations", type=_int_arg("--generations"), default=120)
+    sweep.add_argument(
+        "--generations",
+        type=_int_arg("--generations"),
+        default=120,
+        help="generations per run (the paper: 120)",
+    )
     sweep.add_argument("--out", required=True, help="sweep directory")
     sweep.add_argument(
         "--workers",
@@ -479,7 +662,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--ray",
         default=None,
         metavar="ADDRESS",
-        help="run on Ray: auto, HOST:PORT, ray://HOST:PORT, or local",
+        help="run on Ray: auto, HOST:PORT, ray://HOST:PORT, or local (default: local "
+        "processes, no Ray)",
     )
     sweep.add_argument(
         "--grid",
@@ -498,7 +682,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Print the resolved configuration (the paper's defaults, then --config, "
         "then --set) as TOML: each setting with its meaning, allowed range, unit and source.",
     )
-    config.add_argument("--method", default="ee", choices=("ee", "ce"))
+    config.add_argument(
+        "--method", default="ee", choices=("ee", "ce"), help="the method the config is for"
+    )
     _add_setting_options(config)
     config.set_defaults(func=_cmd_config)
 
@@ -511,7 +697,7 @@ def build_parser() -> argparse.ArgumentParser:
         "published run tables into <dir>/figures (or --out); a grid sweep also gets the "
         "comparison of its cells (cells.csv, cells.png).",
     )
-    plot.add_argument("dir")
+    plot.add_argument("dir", help="a run directory, a sweep directory or published run tables")
     plot.add_argument(
         "--out", default=None, help="directory for the figures and tables (default: DIR/figures)"
     )
@@ -520,18 +706,43 @@ def build_parser() -> argparse.ArgumentParser:
     render = sub.add_parser(
         "render",
         help="render an MP4 video continuing a run",
-        description="Render an MP4 (top-down field + omni views + "
-        "overlays) continuing a run from its newest checkpoint (or a "
-        "given checkpoint file). The run directory is not modified.",
+        description="Render an MP4 continuing a run from its newest checkpoint (or the "
+        "checkpoint of generation --start, or a given checkpoint file): the top-down field "
+        "with robot labels (CRi = robot i), heading arrows, docking and mating marks, the "
+        "robots' omni camera strips, and a legend of every colour and mark in each frame. "
+        "The run directory is not modified.",
     )
     render.add_argument("dir", nargs="?", default=None, help="a run directory")
     render.add_argument("--checkpoint", default=None, help="a checkpoint file instead")
     render.add_argument("--out", required=True, help="output .mp4 file")
     render.add_argument(
         "--frames",
-        type=_int_arg("--frames"),
-        default=300,
-        help="frames (one control step each by default; 300 = 30 s)",
+        default="300",
+        metavar="N",
+        help="number of frames, in [1, 100000] (one control step each by default; 300 = 30 s "
+        "at 10 fps)",
+    )
+    render.add_argument(
+        "--size",
+        default=None,
+        metavar="WxH",
+        help="frame size in px (default 1280x720): even W and H, H in [480, 2160], W in "
+        "[H + 256, 3840]",
+    )
+    render.add_argument(
+        "--camera",
+        default="top",
+        metavar="VIEW",
+        help="top (field from above + every robot's omni strip; the default), chase:N (robot "
+        "N's chase view) or omni:N (robot N's omni strip across the frame); N a robot index",
+    )
+    render.add_argument(
+        "--start",
+        default=None,
+        metavar="G",
+        help="begin where generation G closed, from the run directory's checkpoint of "
+        "generation G (default: the newest checkpoint; evolve with --keep-checkpoints 0 to "
+        "keep every generation)",
     )
     render.add_argument("--fps", type=_int_arg("--fps"), default=10)
     render.add_argument("--steps-per-frame", type=_int_arg("--steps-per-frame"), default=1)
@@ -552,18 +763,32 @@ def build_parser() -> argparse.ArgumentParser:
         "--generation", type=_int_arg("--generation"), default=40, help="source generation"
     )
     move.add_argument("--top", type=_int_arg("--top"), default=5, help="fittest individuals")
-    move.add_argument("--robots", type=_int_arg("--robots"), default=3)
-    move.add_argument("--agents-per-robot", type=_int_arg("--agents-per-robot"), default=5)
+    move.add_argument(
+        "--robots", type=_int_arg("--robots"), default=3, help="robots of the new colony"
+    )
+    move.add_argument(
+        "--agents-per-robot",
+        type=_int_arg("--agents-per-robot"),
+        default=5,
+        help="virtual agents per robot",
+    )
     move.add_argument(
         "--generations", type=_int_arg("--generations"), default=10, help="generations after"
     )
     move.add_argument(
         "--profile", default="hardware", choices=("hardware", "sim"), help="world profile"
     )
-    move.add_argument("--seed", type=_int_arg("--seed"), default=0)
+    move.add_argument("--seed", type=_int_arg("--seed"), default=0, help="the new run's seed")
     move.add_argument("--out", required=True, help="new run directory")
-    move.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    move.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS)
     move.set_defaults(func=_cmd_transfer)
+
+    for name, (module, summary) in MOUNTED.items():
+        mounted = sub.add_parser(name, help=summary, description=summary)
+        if name == command:  # only the command being run imports its module (torch, GL)
+            entry = importlib.import_module(module)
+            entry.add_arguments(mounted)
+            mounted.set_defaults(func=entry.run)
     return parser
 
 
@@ -581,23 +806,33 @@ def _user_errors() -> tuple[type[Exception], ...]:
     return (*errors, CheckpointError, SweepFailed)
 
 
+def _print_error(prog: str, message: object) -> int:
+    """Print ``PROG: error: MESSAGE`` as one line on stderr; the usage exit status."""
+    print(f"{prog}: error: {_one_line(message)}", file=sys.stderr, flush=True)
+    return EXIT_USAGE
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Run the command line ``argv`` (default: ``sys.argv[1:]``); its exit status."""
+    words = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(_command_of(words))
+    try:
+        args, extra = parser.parse_known_args(words)
+    except UsageError as err:
+        return _print_error(err.prog, err)
+    prog = f"{parser.prog} {args.command}"
+    if extra:
+        return _print_error(prog, f"unrecognized arguments: {' '.join(extra)}")
     command: Callable[[argparse.Namespace], int] = args.func
     try:
         return command(args)
     except _user_errors() as err:
-        print(f"cyber-rodent: error: {err}", file=sys.stderr)
-        return EXIT_USAGE
+        return _print_error(prog, err)
     except OSError as err:
-        print(
-            f"cyber-rodent: error: {err.strerror or err}: {err.filename or ''}".rstrip(": "),
-            file=sys.stderr,
-        )
-        return EXIT_USAGE
+        where = f": {err.filename}" if err.filename else ""
+        return _print_error(prog, f"{err.strerror or err}{where}")
     except KeyboardInterrupt:
-        print("cyber-rodent: interrupted", file=sys.stderr)
+        print(f"{prog}: interrupted", file=sys.stderr)
         return 130
 
 

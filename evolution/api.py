@@ -39,6 +39,7 @@ import numpy as np
 
 from behaviours import BehaviourPolicies
 from cyber_rodent.atomic import atomic_output, remove_stale_temporaries, write_text
+from cyber_rodent.validation import check_integer
 from evolution.config import EvolutionConfig
 from evolution.runner import (
     METHODS,
@@ -59,6 +60,7 @@ if TYPE_CHECKING:
 OVERRIDES = tuple(sorted({*settings(), *FLAT_KEYS}))
 
 STATISTICS_FILE = "statistics.csv"
+VERSIONS_FILE = "versions.json"
 ROBOT_STATISTICS_FILE = "statistics_per_robot.csv"
 ROBOT_COLUMNS = ("generation", "robot", "batteries_mean", "full_lifetimes", "completed")
 EVENTS_FILE = "events.csv"
@@ -95,6 +97,22 @@ def make_config(
     return apply(base, overrides)
 
 
+def check_run_config(config: RunConfig) -> None:
+    """Refuse a config whose run could not be built, before anything is allocated or written.
+
+    Every field is already within its own bounds; what is left are the sizes of several fields
+    together: rendered vision draws every robot's strip into one off-screen buffer.
+
+    Raises:
+        ValueError: the strips of all robots do not fit one buffer (the message names the
+            camera's resolution and the robot count).
+    """
+    if config.vision == "rendered":
+        from cyber_rodent.vision.rendering import strips_buffer_size
+
+        strips_buffer_size(config.camera, config.world.n_robots)
+
+
 def run(
     method: str = "ee",
     generations: int = 120,
@@ -108,6 +126,7 @@ def run(
     keep_checkpoints: int = 3,
     max_steps: int | None = None,
     progress: bool = False,
+    versions: dict[str, Any] | None = None,
     **overrides: Any,
 ) -> pd.DataFrame:
     """Run EE or CE for ``generations`` generations and return the statistics table.
@@ -127,6 +146,9 @@ def run(
         keep_checkpoints: newest checkpoints to keep (0: all).
         max_steps: stop after this many world control steps even if unfinished.
         progress: show a progress bar.
+        versions: with ``out_dir``: a record of the software environment, written as
+            ``versions.json`` once the run is built, just before ``run.json`` (so a run that
+            fails to start leaves no directory behind).
         **overrides: config fields, see :func:`make_config`.
 
     Returns:
@@ -141,8 +163,13 @@ def run(
         FileNotFoundError: no ``policies`` given and the trained values are not installed.
     """
     run_config = make_config(method, config, **overrides)
+    check_run_config(run_config)
     if isinstance(generations, bool) or not isinstance(generations, int) or generations < 0:
         raise ValueError(f"generations must be an integer in [0, ∞), got {generations!r}")
+    check_integer("checkpoint_every", checkpoint_every, 1)
+    check_integer("keep_checkpoints", keep_checkpoints, 0)
+    if max_steps is not None:
+        check_integer("max_steps", max_steps, 0)
     policies = policies if policies is not None else default_policies()
     if out_dir is None:
         if resume:
@@ -165,6 +192,9 @@ def run(
         runner = EvolutionRunner(run_config, seed, policies)
     with runner:
         out.mkdir(parents=True, exist_ok=True)
+        if versions is not None:
+            text = json.dumps(versions, indent=2, sort_keys=True, default=repr) + "\n"
+            write_text(out / VERSIONS_FILE, text)
         _write_json(out / RUN_FILE, run_record(runner, generations))
 
         def write_results(r: EvolutionRunner) -> None:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from cyber_rodent.survival.config import ENERGY_LIMIT, MAX_STEP_COUNT
 from cyber_rodent.validation import (
     boolean,
     check_integer,
@@ -29,9 +30,18 @@ from cyber_rodent.validation import (
     number,
     validate_fields,
 )
+from cyber_rodent.world import MAX_ROBOTS
 
 #: Number of evolved weights (paper §3.5): 3 for the recharge decision + 12 x 3 for selection.
 GENOME_LENGTH = 39
+#: Most virtual agents in a colony (100x the paper's 100). A robot runs its subpopulation one
+#: life after another, so a generation lasts about ``population_size / n_robots x
+#: lifetime_steps`` control steps: at this bound, 4 robots and the paper's lifetime, a million.
+#: Larger numbers are typos (a digit too many), refused before a run allocates or writes.
+MAX_POPULATION = 10_000
+#: Most generations of one run or sweep member (830x the paper's 120): a generation is at least
+#: one life of every agent, so a larger number cannot finish and is a typo.
+MAX_GENERATIONS = 100_000
 
 
 @dataclass(frozen=True)
@@ -97,15 +107,29 @@ class EvolutionConfig:
             generation that finish later (in lagging slots) are counted in
             ``StatisticsRecorder.late`` instead of a row.
         genetics: the genome and its operators (Table 2).
+
+    The sizes are bounded so that a typo is refused before a run allocates or writes anything:
+    at most :data:`MAX_POPULATION` agents, the robots that fit in the field
+    (:data:`cyber_rodent.world.MAX_ROBOTS`), and step counts and energies within the survival
+    world's own bounds (:data:`~cyber_rodent.survival.config.MAX_STEP_COUNT`,
+    :data:`~cyber_rodent.survival.config.ENERGY_LIMIT`).
     """
 
-    lifetime_steps: int = integer(400, 1, unit="control steps", source="paper Table 1")
-    time_sharing_steps: int = integer(100, 1, unit="control steps", source="paper Table 1")
-    population_size: int = integer(100, 1, unit="agents", source="paper Table 1")
-    n_robots: int = integer(4, 1, unit="robots", source="paper Table 1")
-    initial_energy: float = number(100.0, 0.0, low_open=True, source="paper Table 1")
-    max_energy: float = number(200.0, 0.0, low_open=True, source="paper Table 1")
-    max_recharge_steps: int = integer(40, 1, unit="control steps", source="paper Table 1")
+    lifetime_steps: int = integer(
+        400, 1, MAX_STEP_COUNT, unit="control steps", source="paper Table 1"
+    )
+    time_sharing_steps: int = integer(
+        100, 1, MAX_STEP_COUNT, unit="control steps", source="paper Table 1"
+    )
+    population_size: int = integer(100, 1, MAX_POPULATION, unit="agents", source="paper Table 1")
+    n_robots: int = integer(4, 1, MAX_ROBOTS, unit="robots", source="paper Table 1")
+    initial_energy: float = number(
+        100.0, 0.0, ENERGY_LIMIT, low_open=True, source="paper Table 1"
+    )
+    max_energy: float = number(200.0, 0.0, ENERGY_LIMIT, low_open=True, source="paper Table 1")
+    max_recharge_steps: int = integer(
+        40, 1, MAX_STEP_COUNT, unit="control steps", source="paper Table 1"
+    )
     fitness_time_unit: float = number(
         100.0, 0.0, low_open=True, unit="control steps", source="paper §3.3"
     )

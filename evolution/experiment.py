@@ -8,15 +8,17 @@ A run directory holds everything needed to tell what produced what:
 - ``run.json``: the resolved config (human-readable JSON), the settings that differ from the
   paper's defaults by dotted key, seed, behaviour policies, target generations, package version
   and git commit, and headline numbers (written by :func:`evolution.api.run`);
-- ``versions.json``: Python, this package and its dependencies' versions, the command line;
+- ``versions.json``: Python, this package and its dependencies' versions, the command line
+  (written with ``run.json`` once the run is built);
 - ``statistics.csv``: the per-generation statistics table (pandas-readable);
 - ``events.csv``: the event log (dockings, recharge ends, matings, deaths, births);
 - ``checkpoints/``: the complete state every generation (atomic writes);
 - ``figures/``: the run's figures (PNG + PDF).
 
 Bad input is rejected before the directory is created, so it never leaves a half-made run
-directory behind; an interrupted run is resumed with :func:`resume_run`, and its result is
-identical to an uninterrupted run's.
+directory behind; a directory that a run stopped during its start-up left anyway (an older
+version, a kill) is cleared by ``--force`` (:func:`stopped_while_starting`). An interrupted run
+is resumed with :func:`resume_run`, and its result is identical to an uninterrupted run's.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import datetime as _dt
 import json
 import os
 import platform
+import shlex
 import shutil
 import sys
 import typing
@@ -36,17 +39,20 @@ from typing import Any
 import pandas as pd
 
 from behaviours import BehaviourPolicies
-from cyber_rodent.atomic import atomic_output, write_text
+from cyber_rodent.atomic import TEMP_MARK, atomic_output, write_text
+from cyber_rodent.validation import check_integer
 from evolution.api import (
     CHECKPOINT_DIR,
     RUN_FILE,
     STATISTICS_FILE,
+    VERSIONS_FILE,
+    check_run_config,
     holds_a_run,
     make_config,
 )
+from evolution.config import MAX_GENERATIONS
 from evolution.runner import EvolutionRunner, RunConfig, latest_checkpoint, policy_identity
 
-VERSIONS_FILE = "versions.json"
 FIGURES_DIR = "figures"
 POLICY_NAMES = ("trained", "reactive")
 #: Distributions whose versions a run records.
@@ -90,8 +96,47 @@ def default_out_dir(method: str, seed: int) -> Path:
     return Path("runs") / f"{method}-seed{seed:03d}-{stamp}"
 
 
+def _is_temporary(path: Path) -> bool:
+    """A stray temporary of :func:`cyber_rodent.atomic.atomic_output` (a killed write)."""
+    return path.name.startswith(".") and TEMP_MARK in path.name
+
+
+def _readable_record(path: Path) -> bool:
+    try:
+        return isinstance(json.loads(path.read_text()), dict)
+    except (OSError, ValueError):
+        return False
+
+
+def stopped_while_starting(path: str | os.PathLike[str]) -> bool:
+    """Does ``path`` hold only what a run stopped during its start-up leaves behind?
+
+    That is ``versions.json``, a ``run.json`` cut short, stray temporaries of atomic writes
+    and a ``checkpoints/`` without a checkpoint: no state to continue and no result to lose,
+    so ``--force`` may clear it, though :func:`holds_a_run` counts the partial ``run.json``.
+    """
+    root = Path(path)
+    if not root.is_dir() or latest_checkpoint(root / CHECKPOINT_DIR) is not None:
+        return False
+    entries = list(root.iterdir())
+    for entry in entries:
+        if entry.name == VERSIONS_FILE or _is_temporary(entry):
+            continue
+        if entry.name == RUN_FILE and entry.is_file() and not _readable_record(entry):
+            continue
+        if entry.name == CHECKPOINT_DIR and entry.is_dir():
+            if all(_is_temporary(p) for p in entry.iterdir()):
+                continue
+        return False
+    return bool(entries)
+
+
 def prepare_out_dir(out: str | os.PathLike[str], *, resume: bool, force: bool) -> Path:
     """Check that ``out`` may receive a run; with ``force`` clear an old run first.
+
+    A directory that a run stopped during start-up left behind (:func:`stopped_while_starting`)
+    holds nothing to continue: only ``versions.json`` is reused as is, anything more needs
+    ``force``.
 
     Raises:
         ValueError: ``out`` is a file; it is non-empty without ``resume``/``force``; ``force``
@@ -105,26 +150,43 @@ def prepare_out_dir(out: str | os.PathLike[str], *, resume: bool, force: bool) -
         raise ValueError(f"--out {path} is a file, not a directory")
     # A run killed before its first record leaves only versions.json: nothing to keep.
     non_empty = path.is_dir() and any(p.name != VERSIONS_FILE for p in path.iterdir())
-    is_run = holds_a_run(path)
+    started = stopped_while_starting(path)
+    is_run = holds_a_run(path) and not started
     if resume:
+        if started:
+            raise ValueError(
+                f"--resume: {path} holds no run to continue (it stopped while starting, before "
+                "its first checkpoint); start it again with --force instead of --resume"
+            )
         if not is_run:
             raise ValueError(f"--resume: {path} holds no run to continue")
         return path
+    _check_parent_writable(path)
     if non_empty:
         if not force:
+            if started:
+                raise ValueError(
+                    f"--out {path} holds a run that stopped while starting (no checkpoint); "
+                    "pass --force to start it again"
+                )
             raise ValueError(
                 f"--out {path} exists and is not empty; pass --resume to continue "
                 "the run in it or --force to replace it"
             )
-        if not is_run:
+        if not (is_run or started):
             raise ValueError(f"--force: {path} is not a run directory; refusing to delete it")
         shutil.rmtree(path)
+    return path
+
+
+def _check_parent_writable(path: Path) -> None:
     parent = path.resolve().parent
     while not parent.exists():
         parent = parent.parent
+    if not parent.is_dir():
+        raise ValueError(f"--out {path}: {parent} is a file, not a directory")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"--out {path}: {parent} is not writable")
-    return path
 
 
 SWEEP_FILE = "sweep.json"
@@ -195,20 +257,20 @@ def evolve(
 ) -> tuple[Path, pd.DataFrame]:
     """Run (or continue) one EE/CE run in a run directory and draw its figures.
 
-    Everything is validated before the directory is touched.
+    Everything is validated before the directory is touched, and the directory is created
+    only once the run is built (:func:`evolution.api.run` writes ``versions.json`` and
+    ``run.json`` then), so bad input or a failed start leaves nothing behind.
     """
     from evolution.api import run
 
     overrides = dict(overrides or {})
-    make_config(method, **overrides)  # validates method and every override
-    if isinstance(generations, bool) or not isinstance(generations, int) or generations < 1:
-        raise ValueError(f"--generations must be an integer >= 1, got {generations!r}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"--seed must be an integer >= 0, got {seed!r}")
+    check_run_config(make_config(method, **overrides))  # method, every override, their sizes
+    check_integer("--generations", generations, 1, MAX_GENERATIONS)
+    check_integer("--seed", seed, 0)
+    check_integer("--checkpoint-every", checkpoint_every, 1, MAX_GENERATIONS)
+    check_integer("--keep-checkpoints", keep_checkpoints, 0, MAX_GENERATIONS)
     chosen = policies_by_name(policies)
     path = prepare_out_dir(out, resume=resume, force=force)
-    path.mkdir(parents=True, exist_ok=True)
-    _write_json(path / VERSIONS_FILE, environment_versions(argv))
     table = run(
         method,
         generations,
@@ -219,6 +281,7 @@ def evolve(
         checkpoint_every=checkpoint_every,
         keep_checkpoints=keep_checkpoints,
         progress=progress,
+        versions=environment_versions(argv),
         **overrides,
     )
     plot_run_dir(path)
@@ -254,15 +317,36 @@ def resume_run(
     from evolution.api import run
 
     path = Path(out)
+    if generations is not None:
+        check_integer("--generations", generations, 1, MAX_GENERATIONS)
+    if not path.exists():
+        raise ValueError(f"{path}: no such run directory")
+    if not path.is_dir():
+        raise ValueError(f"{path} is a file, not a run directory")
+    if (path / SWEEP_FILE).exists():
+        raise ValueError(
+            f"{path} is a sweep directory, not a run; continue it with sweep --resume: "
+            f"{rerun_command(path / SWEEP_FILE, '--resume')}"
+        )
+    if stopped_while_starting(path):
+        raise ValueError(
+            f"{path}: its run stopped while starting, before its first checkpoint, so there is "
+            f"nothing to resume; start it again: {rerun_command(path / VERSIONS_FILE, '--force')}"
+        )
     record = read_run_record(path)
-    target = int(generations if generations is not None else record["target_generations"])
-    chosen = policies_for_identity(record["policies"])
+    try:
+        target = int(generations if generations is not None else record["target_generations"])
+        identity = str(record["policies"])
+        seed = int(record["seed"])
+    except (KeyError, TypeError, ValueError) as err:
+        raise ValueError(f"{path / RUN_FILE} is incomplete or malformed ({err!r})") from None
+    chosen = policies_for_identity(identity)
     newest = latest_checkpoint(path / CHECKPOINT_DIR)
     if newest is not None:
         with EvolutionRunner.from_checkpoint(newest, chosen) as runner:
             config, seed = runner.config, runner.seed
     else:
-        config, seed = run_config_from_record(record["config"]), int(record["seed"])
+        config = run_config_from_record(record.get("config"))
     table = run(
         config.method,
         target,
@@ -277,10 +361,34 @@ def resume_run(
     return path, table
 
 
-def run_config_from_record(data: dict[str, Any]) -> RunConfig:
-    """Rebuild a :class:`~evolution.runner.RunConfig` from its ``dataclasses.asdict`` form."""
-    config: RunConfig = _dataclass_from_dict(RunConfig, data)
+def run_config_from_record(data: object) -> RunConfig:
+    """Rebuild a :class:`~evolution.runner.RunConfig` from its ``dataclasses.asdict`` form.
+
+    Raises:
+        ValueError: ``data`` is not such a form, or a value its field refuses.
+    """
+    if not isinstance(data, dict):
+        raise ValueError(f"run.json: config must be a JSON object, got {type(data).__name__}")
+    try:
+        config: RunConfig = _dataclass_from_dict(RunConfig, data)
+    except TypeError as err:
+        raise ValueError(f"run.json: malformed config ({err})") from None
     return config
+
+
+def rerun_command(record: Path, flag: str) -> str:
+    """The command recorded in ``record`` (``versions.json`` or ``sweep.json``) with ``flag``
+    (``--resume`` or ``--force``) in place of the other, for a hint; words if none is recorded."""
+    try:
+        argv = json.loads(record.read_text())["command"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"its original command with {flag}"
+    if not isinstance(argv, list) or len(argv) < 2 or not all(isinstance(a, str) for a in argv):
+        return f"its original command with {flag}"
+    args = [a for a in argv[1:] if a not in ("--resume", "--force")]
+    if "--out" not in args and not any(a.startswith("--out=") for a in args):
+        args += ["--out", str(record.parent)]
+    return "cyber-rodent " + shlex.join([*args, flag])
 
 
 def _dataclass_from_dict(cls: type, values: dict[str, Any]) -> Any:
@@ -376,16 +484,18 @@ def render_run(
     fps: int = 10,
     steps_per_frame: int = 1,
     progress: bool = True,
+    **video: Any,
 ) -> Path:
     """An MP4 continuing a run from a checkpoint file or a run directory's newest checkpoint.
 
-    The run directory is not modified: the video's steps happen in memory only.
+    The run directory is not modified: the video's steps happen in memory only. ``video``:
+    further :class:`evolution.video.VideoConfig` fields (``width``, ``height``, ``camera``).
     """
     from cyber_rodent.render import check_writable_output
     from evolution.checkpoint import read_header
     from evolution.video import MAX_FRAMES, VideoConfig, render_video
 
-    config = VideoConfig(fps=fps, steps_per_frame=steps_per_frame)
+    config = VideoConfig(fps=fps, steps_per_frame=steps_per_frame, **video)
     if isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= MAX_FRAMES:
         raise ValueError(f"--frames must be an integer in [1, {MAX_FRAMES}], got {frames!r}")
     if Path(out).suffix.lower() != ".mp4":

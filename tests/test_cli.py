@@ -75,3 +75,47 @@ def test_snapshot_missing_asset(tmp_path: Path) -> None:
     )
     assert result.returncode == 2
     assert "missing asset" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_help_shows_every_default() -> None:
+    from cyber_rodent.cli import build_parser
+
+    parser = build_parser()
+    expected = {
+        "evolve": ["--method {ee,ce}", "(default: ee)", "(default: 0)", "(default: 1)"],
+        "sweep": ["(default: ee,ce)", "(default: 0-19)", "(default: 120)", "(default: CPU"],
+        "transfer": ["(default: 40)", "(default: 5)", "(default: 3)", "(default: hardware)"],
+        "resume": ["(default: the run's own)"],
+        "config": ["(default: ee)"],
+    }
+    for command, fragments in expected.items():
+        text = " ".join(parser.commands[command].format_help().split())
+        for fragment in fragments:
+            assert fragment in text, (command, fragment)
+    assert "projected run time" in " ".join(parser.commands["sweep"].format_help().split())
+
+
+def test_parser_errors_are_one_line_without_usage() -> None:
+    result = run_cli("evolve", "--method", "xyz")
+    assert result.returncode == 2
+    assert result.stderr.splitlines() == [
+        "cyber-rodent evolve: error: argument --method: invalid choice: 'xyz' "
+        "(choose from 'ee', 'ce')"
+    ]
+    result = run_cli("evolve", "--seed", "abc", "--no-such-option")
+    assert result.returncode == 2 and len(result.stderr.splitlines()) == 1
+    assert "usage:" not in result.stderr
+
+
+def test_a_rendered_task_closes_its_gl_context_at_exit() -> None:
+    code = (
+        "from cyber_rodent import tasks\n"
+        "e = tasks.load('forage', seed=0, vision='rendered'); e.reset()\n"  # never closed
+        "f = tasks.load('mate', seed=1, vision='rendered'); f.reset(); f.close(); f.close()\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+        env={**os.environ, "MUJOCO_GL": "egl"},
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""

@@ -518,7 +518,7 @@ def test_resume_render_and_transfer_refuse_a_malicious_checkpoint(
     for argv in commands:
         assert cli_main(argv) == 2, argv
         err = capsys.readouterr().err
-        assert err.count("\n") == 1 and err.startswith("cyber-rodent: error: "), err
+        assert err.count("\n") == 1 and err.startswith(f"cyber-rodent {argv[0]}: error: "), err
         assert str(checkpoint) in err, err
         assert not marker.exists()
     assert not (tmp_path / "v.mp4").exists() and not (tmp_path / "t").exists()

@@ -201,7 +201,7 @@ def test_parse_seeds() -> None:
         (["evolve", "--set", "no_such_key=1"], "unknown config key 'no_such_key'"),
         (
             ["evolve", "--set", "population_size=many"],
-            "evolution.population_size must be an integer in [1, ∞), got 'many'",
+            "evolution.population_size must be an integer in [1, 10000], got 'many'",
         ),
         (["evolve", "--set", "crossover_probability=2"], "crossover_probability"),
         (["evolve", "--set", "population_size=10"], "divisible"),
@@ -254,6 +254,7 @@ def test_grid_sweep_runs_every_cell_and_compares_them(tmp_path: Path) -> None:
     grid = ["--grid", "survival.mate_consecutive_steps=1,2", "--policies", "reactive"]
     r = cli(*args, *grid, "--out", str(out), "--no-progress", *tiny_args())
     assert r.returncode == 0, r.stderr
+    assert "sweep: 2 runs x 1 generations on 2 workers; projected run time about" in r.stdout
     record = json.loads((out / "grid.json").read_text())
     assert [c["name"] for c in record["cells"]] == [
         "mate_consecutive_steps=1", "mate_consecutive_steps=2"
@@ -281,3 +282,98 @@ def test_a_run_killed_before_its_first_record_can_start_again(tmp_path: Path) ->
     (out / "notes.txt").write_text("mine")
     with pytest.raises(ValueError, match="exists and is not empty"):
         prepare_out_dir(out, resume=False, force=False)
+
+
+@pytest.mark.parametrize(
+    "leftovers",
+    [
+        {"run.json": '{"config": {"meth'},  # cut short
+        {"run.json": "[]"},
+        {".run.json.abc123.partial.json": "{"},  # a killed atomic write
+        {"checkpoints/": ""},
+        {"checkpoints/.gen_00000.ckpt.x.partial.ckpt": "", "run.json": ""},
+    ],
+)
+def test_a_run_stopped_while_starting_is_replaced_with_force(tmp_path: Path, leftovers) -> None:
+    from evolution.experiment import (
+        VERSIONS_FILE,
+        prepare_out_dir,
+        resume_run,
+        stopped_while_starting,
+    )
+
+    out = tmp_path / "run"
+    out.mkdir()
+    command = ["cyber-rodent", "evolve", "--seed", "3", "--out", str(out)]
+    (out / VERSIONS_FILE).write_text(json.dumps({"command": command}))
+    for name, text in leftovers.items():
+        path = out / name
+        if name.endswith("/"):
+            path.mkdir()
+        else:
+            path.parent.mkdir(exist_ok=True)
+            path.write_text(text)
+    assert stopped_while_starting(out)
+    with pytest.raises(ValueError, match="stopped while starting.*--force"):
+        prepare_out_dir(out, resume=False, force=False)
+    with pytest.raises(ValueError, match="--resume: .* start it again with --force"):
+        prepare_out_dir(out, resume=True, force=False)
+    with pytest.raises(ValueError, match=r"nothing to resume.*evolve --seed 3 --out .* --force"):
+        resume_run(out)
+    assert prepare_out_dir(out, resume=False, force=True) == out
+    assert not out.exists()  # cleared; the run creates it again once it has started
+
+
+def test_a_run_or_notes_are_not_taken_for_a_stopped_start(tmp_path: Path) -> None:
+    from evolution.experiment import VERSIONS_FILE, stopped_while_starting
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / VERSIONS_FILE).write_text("{}")
+    (run / "run.json").write_text('{"seed": 0}')  # a readable record: a run to continue
+    notes = tmp_path / "notes"
+    notes.mkdir()
+    (notes / VERSIONS_FILE).write_text("{}")
+    (notes / "notes.txt").write_text("mine")
+    assert not stopped_while_starting(run) and not stopped_while_starting(notes)
+    assert not stopped_while_starting(tmp_path / "missing")
+
+
+def test_resume_points_a_sweep_directory_to_sweep_resume(tmp_path: Path) -> None:
+    out = tmp_path / "fig6"
+    r = cli("sweep", "--seeds", "0", "--ray", "127.0.0.1:1", "--out", str(out))
+    assert r.returncode == 2 and not out.exists()
+    out.mkdir()
+    argv = ["cyber-rodent", "sweep", "--seeds", "0-3", "--out", str(out), "--force"]
+    (out / "sweep.json").write_text(json.dumps({"command": argv}))
+    r = cli("resume", str(out))
+    assert r.returncode == 2 and len(r.stderr.splitlines()) == 1
+    assert "sweep --resume: cyber-rodent sweep --seeds 0-3 --out" in r.stderr
+    assert r.stderr.rstrip().endswith("--resume") and "--force" not in r.stderr
+
+
+def test_projected_sweep_time_scales_with_the_work() -> None:
+    from evolution.sweep import RENDERED_STEP_COST, projected_seconds
+
+    spec = SweepSpec(("ee",), (0, 1), 10, TINY_OVERRIDES)
+    base = projected_seconds(spec, workers=1)
+    assert base > 0
+    longer = SweepSpec(("ee",), (0, 1), 20, TINY_OVERRIDES)
+    assert projected_seconds(longer, workers=1) == pytest.approx(2 * base)
+    assert projected_seconds(spec, workers=2) == pytest.approx(base / 2)
+    assert projected_seconds(spec, workers=8) == pytest.approx(base / 2)  # 2 runs, 2 at a time
+    rendered = SweepSpec(("ee",), (0, 1), 10, {**TINY_OVERRIDES, "vision": "rendered"})
+    assert projected_seconds(rendered, workers=1) == pytest.approx(RENDERED_STEP_COST * base)
+    # The paper's Fig. 6 on 2 workers: hours, not minutes or days.
+    fig6 = SweepSpec(("ee", "ce"), parse_seeds("0-19"), 120)
+    assert 2 * 3600 < projected_seconds(fig6, workers=2) < 24 * 3600
+
+
+def test_sweep_refuses_too_many_runs_before_listing_them() -> None:
+    from evolution.sweep import MAX_RUNS
+
+    with pytest.raises(ValueError, match=f"more than {MAX_RUNS} seeds"):
+        parse_seeds(f"0-{10**12}")
+    grid = (("survival.mate_consecutive_steps", tuple(range(1, 101))),)
+    with pytest.raises(ValueError, match=f"at most {MAX_RUNS} runs"):
+        SweepSpec(("ee", "ce"), tuple(range(100)), 1, grid=grid)

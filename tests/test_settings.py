@@ -152,7 +152,9 @@ def test_config_toml_is_a_valid_config_file_that_reproduces_the_config(tmp_path:
     text = to_toml(config, method="ce")
     assert "[survival]" in text and "[camera.noise]" in text and "mate_distance = 0.4" in text
     # Every key is commented with its allowed values and its source.
-    lifetime = "# integer in [1, ∞) · unit: control steps · source: paper Table 1\nlifetime_steps"
+    lifetime = (
+        "# integer in [1, 1000000] · unit: control steps · source: paper Table 1\nlifetime_steps"
+    )
     assert lifetime in text
     assert "source: paper Table 1 · same number as survival.max_energy\nmax_energy = 200.0" in text
     path = tmp_path / "config.toml"

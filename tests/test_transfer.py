@@ -168,5 +168,5 @@ def test_cli_transfer_reports_a_missing_generation_in_one_line(source_run, tmp_p
                  "--out", str(tmp_path / "t")])  # fmt: skip
     err = capsys.readouterr().err
     assert code == 2
-    assert err.startswith("cyber-rodent: error: ") and err.count("\n") == 1
+    assert err.startswith("cyber-rodent transfer: error: ") and err.count("\n") == 1
     assert "no checkpoint of generation 40 (available: 1, 2, 3)" in err

@@ -17,7 +17,10 @@ from cyber_rodent.validation import (
 )
 
 #: Upper bound of the energy fields: large enough for any experiment, small enough to be finite.
-_ENERGY_LIMIT = 1e9
+ENERGY_LIMIT = 1e9
+#: Upper bound of the step counts of a rule (recharge, mating): 1e6 control steps are 55
+#: simulated hours at 0.2 s, longer than any experiment; a larger count is a typo.
+MAX_STEP_COUNT = 1_000_000
 #: The values of ``SurvivalConfig.capture_rule``: a capture is the docking itself, or the
 #: docking's first recharge step.
 CAPTURE_RULES = ("docking", "recharge")
@@ -69,18 +72,18 @@ class SurvivalConfig:
     """
 
     initial_energy: float = number(
-        100.0, 0.0, _ENERGY_LIMIT, low_open=True, source="paper Table 1"
+        100.0, 0.0, ENERGY_LIMIT, low_open=True, source="paper Table 1"
     )
-    max_energy: float = number(200.0, 0.0, _ENERGY_LIMIT, low_open=True, source="paper Table 1")
+    max_energy: float = number(200.0, 0.0, ENERGY_LIMIT, low_open=True, source="paper Table 1")
     energy_decay: float = number(
-        1.0, 0.0, _ENERGY_LIMIT, unit="per control step", source="paper Table 1"
+        1.0, 0.0, ENERGY_LIMIT, unit="per control step", source="paper Table 1"
     )
     recharge_rate: float = number(
-        5.0, 0.0, _ENERGY_LIMIT, unit="per recharge step", source="paper Table 1"
+        5.0, 0.0, ENERGY_LIMIT, unit="per recharge step", source="paper Table 1"
     )
     decay_while_recharging: bool = boolean(False, source="docs/design.md §9.2")
     max_recharge_steps: int = integer(
-        40, 1, 1_000_000, unit="control steps", source="paper Table 1"
+        40, 1, MAX_STEP_COUNT, unit="control steps", source="paper Table 1"
     )
     control_dt: float = number(
         0.2, 0.0, 10.0, low_open=True, unit="s", source="docs/design.md §9.1"
@@ -101,7 +104,7 @@ class SurvivalConfig:
         source="docs/design.md §9.7",
     )  # fmt: skip
     mate_consecutive_steps: int = integer(
-        2, 1, 1_000_000, unit="control steps", source="docs/design.md §9.7"
+        2, 1, MAX_STEP_COUNT, unit="control steps", source="docs/design.md §9.7"
     )
     capture_rule: str = choice("docking", CAPTURE_RULES, source="docs/design.md §9.5")
     mate_reflex: bool = boolean(True, source="docs/design.md §9.7")
@@ -109,7 +112,7 @@ class SurvivalConfig:
     def __post_init__(self) -> None:
         validate_fields(self)
         # The cap holds a newborn's energy, and a step drains or gains at most the cap.
-        check_number("max_energy", self.max_energy, self.initial_energy, _ENERGY_LIMIT)
+        check_number("max_energy", self.max_energy, self.initial_energy, ENERGY_LIMIT)
         check_number("energy_decay", self.energy_decay, 0.0, self.max_energy)
         check_number("recharge_rate", self.recharge_rate, 0.0, self.max_energy)
         check_integer("reflex_max_steps", self.reflex_max_steps, self.reflex_min_steps, 1000)

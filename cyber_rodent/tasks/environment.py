@@ -47,6 +47,13 @@ class CyberRodentEnvironment(control.Environment):  # type: ignore[misc]  # dm_c
     def reward_spec(self) -> specs.Array:
         return self._task.reward_spec()
 
+    def close(self) -> None:
+        """Release the task's vision now (a rendered task's GL context); idempotent."""
+        task: CyberRodentTask = self._task
+        close = getattr(task.vision, "close", None)  # not every provider holds resources
+        if close is not None:
+            close()
+
     @property
     def survival(self) -> SurvivalWorld:
         """The :class:`~cyber_rodent.survival.SurvivalWorld` under the task."""

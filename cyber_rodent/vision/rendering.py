@@ -33,7 +33,9 @@ Headless: the GL backend follows ``MUJOCO_GL`` (``egl`` by default, set by
 
 from __future__ import annotations
 
+import atexit
 import os
+import weakref
 from typing import Any
 
 import mujoco
@@ -66,6 +68,29 @@ def strips_buffer_size(config: CameraConfig, n_robots: int) -> tuple[int, int]:
             f"{MAX_BUFFER_PIXELS} in all); lower the camera resolution"
         )
     return width, height
+
+
+#: Renderers whose GL context is still open (see :func:`close_at_exit`).
+_OPEN_RENDERERS: weakref.WeakSet[Any] = weakref.WeakSet()
+
+
+def close_at_exit(renderer: Any) -> None:
+    """Close ``renderer`` (its ``close()``) at interpreter exit if it is still open.
+
+    MuJoCo's EGL module terminates its display in an ``atexit`` hook registered with the
+    process's first context; a context still alive after it is freed by the garbage collector
+    on a terminated display, which prints ``EGL_NOT_INITIALIZED`` tracebacks. ``atexit`` runs
+    the last-registered hook first, so the hook that closes the open renderers is registered
+    again after every new context: it always runs before EGL's teardown.
+    """
+    _OPEN_RENDERERS.add(renderer)
+    atexit.unregister(_close_open_renderers)
+    atexit.register(_close_open_renderers)
+
+
+def _close_open_renderers() -> None:
+    for renderer in list(_OPEN_RENDERERS):
+        renderer.close()
 
 
 def gl_context(width: int, height: int) -> Any:
@@ -150,6 +175,7 @@ class OmniRenderer:
         self._pixels = np.empty((self.buffer_height, self.width, 3), dtype=np.uint8)
         self._cam_site = np.asarray(world.camera_site, dtype=np.int64)
         self._closed = False
+        close_at_exit(self)
 
     def render(self) -> np.ndarray:
         """Render all strips; returns a (n_robots, height, strip_width, 3) uint8 RGB view.

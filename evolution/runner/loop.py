@@ -69,9 +69,9 @@ def run_generations(
         directory.mkdir(parents=True, exist_ok=True)
     bar = None
     if progress:
-        from tqdm.auto import tqdm
+        from cyber_rodent.progress import progress_bar
 
-        bar = tqdm(
+        bar = progress_bar(
             total=generations, initial=min(runner.completed_generations, generations),
             unit="gen", desc=f"{runner.config.method.upper()} seed {runner.seed}",
         )  # fmt: skip

@@ -19,7 +19,7 @@ from cyber_rodent.vision.batch_rendering.meshes import LOD_RADIUS_PX, build_geom
 from cyber_rodent.vision.batch_rendering.shaders import directional_lights, transform_source
 from cyber_rodent.vision.config import CameraConfig
 from cyber_rodent.vision.projection import OmniProjection
-from cyber_rodent.vision.rendering import FAR_CLIP, strips_buffer_size
+from cyber_rodent.vision.rendering import FAR_CLIP, close_at_exit, strips_buffer_size
 from cyber_rodent.world import World
 
 
@@ -88,6 +88,7 @@ class BatchOmniRenderer:
         self._strips = self._pixels.reshape(n, config.height, self.width, 3)
         self._context = OffscreenContext(self.width, self.buffer_height)
         self._closed = False
+        close_at_exit(self)
         try:
             self._pipeline = DrawPipeline(
                 self.geometry,
