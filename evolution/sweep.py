@@ -1,36 +1,65 @@
 """Many runs (grid cells × methods × seeds) in parallel: local processes, or a Ray cluster.
 
 Each run is independent and its result depends only on its config and seed, so a sweep gives
-identical tables whichever executor or how many workers ran it. Every run writes its own run
+identical tables whichever executor or how many workers ran it. Every run has its own run
 directory ``<out>/<method>-seed<NNN>`` (``<out>/<cell>/<method>-seed<NNN>`` in a sweep over a
-grid of settings, :mod:`evolution.grid`) through :func:`evolution.api.run`, checkpointing every
-generation; a run whose worker fails or is killed is submitted again with ``resume=True`` and
-continues from its last checkpoint, so a retry costs at most one generation and changes nothing
-in the result.
+grid of settings, :mod:`evolution.grid`) holding what :func:`evolution.api.run` writes there
+(``statistics.csv``, ``statistics_per_robot.csv``, ``events.csv``, ``run.json``, the newest
+:data:`KEEP_CHECKPOINTS` checkpoints), checkpointed every generation. A run whose worker fails
+or is killed is submitted again and continues from its last checkpoint, so a retry costs at
+most one generation and changes nothing in the result (resuming is bit-identical,
+docs/design.md §10).
 
 Backends:
 
 - ``local`` (default): one process per run, ``workers`` at a time (``spawn`` start method, so
-  MuJoCo and OpenGL state never crosses a ``fork``). A killed worker breaks a
-  ``ProcessPoolExecutor``; the pool is rebuilt and the unfinished runs resumed.
-- ``ray``: each run is a Ray task (``num_cpus=1``) on an existing cluster
-  (``ray_address="auto"`` or ``"host:port"``) or on a fresh local one (``"local"``). Ray retries
-  a task whose worker died (``max_retries``). For retries to resume rather than restart, the
-  output directory must be on a filesystem the workers share; without one a retried run starts
-  again from scratch, with the same result.
+  MuJoCo and OpenGL state never crosses a ``fork``), each writing its run directory itself. A
+  killed worker breaks a ``ProcessPoolExecutor``; the pool is rebuilt and the unfinished runs
+  resumed.
+- ``ray``: the runs go to an existing cluster (``ray_address="auto"`` or ``"host:port"``) or to
+  a fresh Ray instance here (``"local"``), as many at a time as the cluster has CPUs (at most
+  ``workers`` where given), in :attr:`SweepSpec.runs` order.
+
+On a cluster the worker nodes usually do not share the driver's filesystem, so the Ray backend
+never lets a task write to ``out``: the driver's disk holds every run's state. A run advances
+in *chunks* of ``chunk_generations`` whole generations (default :data:`CHUNK_GENERATIONS`), one
+Ray task each (:func:`advance_run`). The task gets the run's newest checkpoint as bytes from the
+driver (none for a new run), rebuilds the runner from it in a temporary directory of its own,
+runs the chunk there, and returns what it wrote as bytes: its new checkpoints, the statistics
+tables, ``run.json``, and ``events.csv`` once the run is complete. The driver writes them
+atomically into the run directory in the order :func:`evolution.api.run` does and prunes the
+checkpoints alike, then submits the run's next chunk; so ``out`` ends with the same files, byte
+for byte, as the local backend writes, and ``cyber-rodent resume`` or ``sweep --resume``
+continue from it. A chunk whose node or worker is lost, whose returned object is lost, or which
+raises, is submitted again from the newest checkpoint the driver holds (a line on stderr says
+so; at most ``max_retries`` times per run, as locally, counted by the driver rather than by Ray
+so that the budget is the run's, not the chunk's): the retried run continues where it stood,
+not from scratch, and, resuming being bit-identical, ends as an uninterrupted run would. Chunks
+are whole generations because checkpoints are written when a generation completes; one
+generation bounds what a lost node costs, and rebuilding a runner from its checkpoint takes a
+small fraction of a generation. Runs under way continue before new ones start, so a sweep
+stopped part-way has whole seeds done. Worker nodes need the package installed (the same
+version: checkpoints record it), not the driver's directories.
 
 Progress: an aggregate bar over all runs' generations, with ETA and the latest mean batteries
-and matings, read from the runs' ``statistics.csv`` files as they are rewritten.
+and matings, read from the runs' ``statistics.csv`` files as they are rewritten (a line a minute
+when stderr is no terminal, :mod:`cyber_rodent.progress`). Before it starts, a sweep's run time
+can be projected from its size (:func:`projected_seconds`).
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import json
 import math
 import multiprocessing
 import os
 import re
 import socket
+import sys
+import tempfile
+import time
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +68,7 @@ from typing import Any, NamedTuple
 import pandas as pd
 
 from cyber_rodent.validation import check_integer, choice, validate_fields
+from evolution.config import MAX_GENERATIONS
 from evolution.grid import Cell, Grid, cells
 
 METHODS = ("ee", "ce")
@@ -47,6 +77,25 @@ POLICIES = ("trained", "reactive")
 #: Environment for worker processes: one BLAS / llvmpipe thread each, since runs already fill
 #: the cores one process per run.
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "LP_NUM_THREADS": "1"}
+#: Most runs (cells x methods x seeds) of one sweep: 250x the paper's Fig. 6 (40 runs). More is
+#: a typo (a seed range with a digit too many), refused before the runs are even listed.
+MAX_RUNS = 10_000
+#: Seconds of one control step of the default world (4 robots, geometric vision, 24 physics
+#: steps of 1/120 s) on one core: ``cyber-rodent evolve``'s measured 1,007 steps/s (README,
+#: Command line). :func:`projected_seconds` scales it to a sweep's config.
+STEP_SECONDS = 1 / 1000
+#: Cost of rendered vision per control step, a multiple of the geometric loop's (README,
+#: Performance: 10.3x).
+RENDERED_STEP_COST = 10.3
+#: Control steps of a generation per agent life in it: EE generations close only after the
+#: replacements of dead agents have lived too (README, Performance: 1.40-1.50 M steps for 120
+#: generations of 25 lives of 400 steps, ~1.2x); CE's lives are the generation (~0.95x).
+STEPS_PER_LIFE = {"ee": 1.2, "ce": 0.95}
+#: Newest checkpoints each run directory keeps (:func:`evolution.api.run`'s default).
+KEEP_CHECKPOINTS = 3
+#: Generations one Ray task advances its run by: a lost node costs at most this much of each
+#: run it held, and every chunk pays one checkpoint's transfer and one runner rebuild.
+CHUNK_GENERATIONS = 1
 
 
 class SweepRun(NamedTuple):
@@ -91,7 +140,12 @@ class SweepSpec:
             raise ValueError(f"seeds must be a non-empty list without repeats, got {self.seeds!r}")
         for seed in self.seeds:
             check_integer("seed", seed, 0)
-        check_integer("generations", self.generations, 1)
+        check_integer("generations", self.generations, 1, MAX_GENERATIONS)
+        n_runs = len(self.methods) * len(self.seeds) * math.prod(len(v) for _, v in self.grid)
+        if n_runs > MAX_RUNS:
+            raise ValueError(
+                f"a sweep runs at most {MAX_RUNS} runs (cells x methods x seeds), got {n_runs}"
+            )
 
     @property
     def cells(self) -> tuple[Cell, ...]:
@@ -123,11 +177,11 @@ class SweepSpec:
         Raises:
             ValueError: the first setting a config refuses (one line naming the key).
         """
-        from evolution.api import make_config
+        from evolution.api import check_run_config, make_config
 
         for c in self.cells:
             for method in self.methods:
-                make_config(method, **self.settings_of(c.name))
+                check_run_config(make_config(method, **self.settings_of(c.name)))
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
@@ -146,6 +200,8 @@ def parse_seeds(text: str) -> tuple[int, ...]:
         hi = int(m.group(2)) if m.group(2) is not None else lo
         if hi < lo:
             raise ValueError(f"bad seed range {part!r} in {text!r}: the end is below the start")
+        if len(seeds) + hi - lo + 1 > MAX_RUNS:
+            raise ValueError(f"bad seed range {text!r}: more than {MAX_RUNS} seeds")
         seeds.extend(range(lo, hi + 1))
     if len(set(seeds)) != len(seeds):
         raise ValueError(f"bad seed range {text!r}: a seed appears twice")
@@ -164,29 +220,148 @@ def run_one(
     out: str,
     overrides: dict[str, Any],
     policies: str = "trained",
+    keep_checkpoints: int = KEEP_CHECKPOINTS,
 ) -> pd.DataFrame:
-    """Run (or resume) one sweep member in its run directory; the worker entry point."""
+    """Run (or resume) one sweep member in its run directory; the local worker entry point."""
     from behaviours import BehaviourPolicies
     from evolution.api import run
 
     chosen = BehaviourPolicies.reactive() if policies == "reactive" else None
-    return run(method, generations, seed, out_dir=out, resume=True, policies=chosen, **overrides)
+    return run(
+        method, generations, seed, out_dir=out, resume=True, policies=chosen,
+        keep_checkpoints=keep_checkpoints, **overrides,
+    )  # fmt: skip
+
+
+class RunChunk(NamedTuple):
+    """What a Ray task needs to advance one run: the run's identity and its newest checkpoint.
+
+    Attributes:
+        method, seed, overrides, policies: the run (as :func:`run_one` takes them).
+        generations: the run's target.
+        chunk: generations this task adds at most.
+        keep_checkpoints: newest checkpoints a run directory keeps (0: all).
+        checkpoint: ``(file name, bytes)`` of the newest checkpoint the driver holds; None
+            starts the run.
+    """
+
+    method: str
+    seed: int
+    generations: int
+    chunk: int
+    overrides: dict[str, Any]
+    policies: str
+    keep_checkpoints: int
+    checkpoint: tuple[str, bytes] | None
+
+
+class ChunkResult(NamedTuple):
+    """What a Ray task returns: the run's progress and the files the chunk wrote.
+
+    Attributes:
+        completed: generations the run has completed.
+        files: path in the run directory (``checkpoints/gen_00003.ckpt``, ``statistics.csv``)
+            -> content, for every file the chunk wrote.
+        table: the run's statistics so far (:meth:`EvolutionRunner.statistics`).
+    """
+
+    completed: int
+    files: dict[str, bytes]
+    table: pd.DataFrame
+
+
+def advance_run(task: RunChunk) -> ChunkResult:
+    """Advance one run by a chunk of generations in a temporary directory; the Ray task.
+
+    Writes exactly what :func:`evolution.api.run` writes in a run directory, in a directory of
+    its own that is deleted on return, and returns those files: the driver stores them, so the
+    worker needs no filesystem shared with it.
+
+    Raises:
+        CheckpointError: the checkpoint is corrupt or belongs to another run.
+    """
+    from behaviours import BehaviourPolicies
+    from evolution.api import (
+        CHECKPOINT_DIR,
+        EVENTS_FILE,
+        RUN_FILE,
+        check_run_config,
+        make_config,
+        robot_table,
+        run_record,
+        write_tables,
+    )
+    from evolution.checkpoint import CheckpointError
+    from evolution.runner import EvolutionRunner, default_policies
+
+    config = make_config(task.method, **task.overrides)
+    check_run_config(config)
+    policies = (
+        BehaviourPolicies.reactive() if task.policies == "reactive" else default_policies()
+    )
+    with tempfile.TemporaryDirectory(prefix="cyber-rodent-run-") as temp:
+        out = Path(temp)
+        checkpoints = out / CHECKPOINT_DIR
+        checkpoints.mkdir()
+        given: Path | None = None
+        if task.checkpoint is None:
+            runner = EvolutionRunner(config, task.seed, policies)
+        else:
+            name, data = task.checkpoint
+            given = checkpoints / Path(name).name
+            given.write_bytes(data)
+            try:
+                runner = EvolutionRunner.from_checkpoint(
+                    given, policies, expect=(config, task.seed)
+                )
+            except CheckpointError as err:  # name the file as the run directory has it
+                raise CheckpointError(str(err).replace(f"{out}{os.sep}", "")) from None
+        with runner:
+            target = min(runner.completed_generations + task.chunk, task.generations)
+            table = runner.run(
+                target,
+                checkpoint_dir=checkpoints,
+                checkpoint_every=1,
+                keep_checkpoints=task.keep_checkpoints,
+            )
+            write_tables(out, table, robot_table(runner))
+            completed = runner.completed_generations
+            if completed >= task.generations:  # api.run writes the event log at the end
+                runner.events.write_csv(out / EVENTS_FILE)
+            record = run_record(runner, task.generations)
+        # The format of api.run's run.json (the tests compare the two byte for byte).
+        (out / RUN_FILE).write_text(json.dumps(record, indent=2, sort_keys=True, default=repr))
+        files = {
+            path.relative_to(out).as_posix(): path.read_bytes()
+            for path in sorted(out.rglob("*"))
+            if path.is_file() and path != given
+        }
+    return ChunkResult(completed, files, table)
 
 
 def check_ray_address(address: str, timeout: float = 3.0) -> None:
-    """Fail fast, with a clear message, if a ``host:port`` Ray address does not answer.
+    """Fail fast, with a clear message, if Ray is missing or a cluster address does not answer.
 
-    ``auto`` and ``local`` are not checked here (Ray resolves them itself).
+    ``local`` (a Ray instance started here) needs Ray only; ``auto`` is resolved as Ray resolves
+    it (``RAY_ADDRESS``, else the cluster ``ray start`` last started on this machine) and then
+    checked like ``host:port``.
 
     Raises:
-        ValueError: the address is malformed or nothing listens there.
+        ValueError: Ray is not installed, the address is malformed, ``auto`` finds no cluster,
+            or nothing listens there.
     """
-    if address in ("auto", "local") or address.startswith("ray://"):
-        target = address.removeprefix("ray://")
-        if target in ("auto", "local"):
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise ValueError("--ray needs ray: pip install 'cyber-rodent[cluster]'") from None
+    target = address.removeprefix("ray://")
+    if target == "local":
+        return
+    if target == "auto":
+        found = _auto_ray_address()
+        if found is None:
             return
-    else:
-        target = address
+        target = found
     m = re.fullmatch(r"\[?([A-Za-z0-9.\-:]+?)\]?:(\d+)", target)
     if not m:
         raise ValueError(
@@ -197,7 +372,60 @@ def check_ray_address(address: str, timeout: float = 3.0) -> None:
         with socket.create_connection((host, port), timeout=timeout):
             pass
     except OSError as err:
-        raise ValueError(f"cannot reach a Ray cluster at {address}: {err}") from None
+        auto = address.removeprefix("ray://") == "auto"
+        where = f"{address} ({host}:{port})" if auto else address
+        raise ValueError(f"cannot reach a Ray cluster at {where}: {err}") from None
+
+
+def _auto_ray_address() -> str | None:
+    """The ``host:port`` Ray's ``auto`` names; None where this Ray cannot be asked (the
+    lookup is not public API, so ``ray.init`` will tell instead).
+
+    Raises:
+        ValueError: no running cluster is found.
+    """
+    try:
+        from ray._private.services import canonicalize_bootstrap_address_or_die
+    except ImportError:
+        return None
+    try:
+        found: str = canonicalize_bootstrap_address_or_die("auto")
+    except ConnectionError:
+        raise ValueError(
+            "--ray auto: no running Ray cluster found (RAY_ADDRESS is unset and `ray start` "
+            "started none here); give HOST:PORT, or --ray local to start one on this machine"
+        ) from None
+    except Exception:  # the private lookup changed: let ray.init report
+        return None
+    return found
+
+
+def projected_seconds(spec: SweepSpec, workers: int) -> float:
+    """Wall-clock seconds a sweep should take: an estimate from its size and config.
+
+    A generation is about ``population_size / n_robots x lifetime_steps`` control steps (the
+    robots run their subpopulations side by side, one life after another; x
+    :data:`STEPS_PER_LIFE`); a control step costs :data:`STEP_SECONDS`, scaled by its physics
+    steps, its robots and rendered vision; the runs share ``workers`` cores. Runs are not all
+    alike (deaths shorten lives, docking costs more physics): this is the order of magnitude.
+    """
+    from evolution.api import make_config
+
+    default = make_config("ee")
+    default_physics = default.survival.control_dt / default.world.timestep
+    total = 0.0
+    for cell in spec.cells:
+        for method in spec.methods:
+            config = make_config(method, **spec.settings_of(cell.name))
+            evo = config.evolution
+            steps = evo.subpopulation_size * evo.lifetime_steps * STEPS_PER_LIFE[method]
+            physics = config.survival.control_dt / config.world.timestep
+            cost = STEP_SECONDS * physics / default_physics
+            cost *= evo.n_robots / default.evolution.n_robots
+            if config.vision == "rendered":
+                cost *= RENDERED_STEP_COST
+            total += len(spec.seeds) * spec.generations * steps * cost
+    return total / max(1, min(workers, len(spec.runs)))
 
 
 class _Progress:
@@ -207,11 +435,11 @@ class _Progress:
         self.spec = spec
         self.out_dir = out_dir
         self.total = len(spec.runs) * spec.generations
-        self.bar = None
+        self.bar: Any = None
         if enabled:
-            from tqdm.auto import tqdm
+            from cyber_rodent.progress import progress_bar
 
-            self.bar = tqdm(
+            self.bar = progress_bar(
                 total=self.total,
                 unit="gen",
                 desc=f"sweep ({len(spec.runs)} runs)",
@@ -259,19 +487,24 @@ def sweep(
     max_retries: int = 2,
     progress: bool = True,
     poll_seconds: float = 2.0,
+    keep_checkpoints: int = KEEP_CHECKPOINTS,
+    chunk_generations: int = CHUNK_GENERATIONS,
 ) -> dict[SweepRun, pd.DataFrame]:
     """Run every (method, seed, cell) of ``spec``; return their statistics tables.
 
     Args:
         spec: methods, seeds, generations and overrides.
         out_dir: parent directory of the run directories (and of the cells' directories).
-        workers: concurrent runs for the local executor (default: the number of CPUs).
-        executor: ``"local"`` (one process per run) or ``"ray"`` (one Ray task per run).
+        workers: concurrent runs (default: the number of CPUs here; with Ray, the cluster's).
+        executor: ``"local"`` (one process per run) or ``"ray"`` (Ray tasks, a chunk of
+            generations each).
         ray_address: with ``executor="ray"``: ``"auto"``, ``"HOST:PORT"``, ``"ray://HOST:PORT"``
             or ``"local"`` (start a Ray instance on this machine with ``workers`` CPUs).
         max_retries: how often a failed run is resubmitted (it resumes from its checkpoint).
         progress: show the aggregate progress bar.
         poll_seconds: how often progress is refreshed.
+        keep_checkpoints: newest checkpoints each run directory keeps (0: all of them).
+        chunk_generations: with ``executor="ray"``: generations one task advances a run by.
 
     Raises:
         ValueError: bad arguments or an unreachable Ray address (before any run starts).
@@ -286,6 +519,8 @@ def sweep(
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     if not isinstance(max_retries, int) or max_retries < 0:
         raise ValueError(f"max_retries must be an integer >= 0, got {max_retries!r}")
+    check_integer("keep_checkpoints", keep_checkpoints, 0)
+    check_integer("chunk_generations", chunk_generations, 1)
     from evolution.grid import check_grid, write_grid
 
     spec.check()  # every cell's settings, before anything runs
@@ -300,15 +535,23 @@ def sweep(
     try:
         if executor == "local":
             return _sweep_local(
-                spec, out, workers or os.cpu_count() or 1, max_retries, bar, poll_seconds
-            )
-        return _sweep_ray(spec, out, workers, ray_address, max_retries, bar, poll_seconds)
+                spec, out, workers or os.cpu_count() or 1, max_retries, keep_checkpoints, bar,
+                poll_seconds,
+            )  # fmt: skip
+        plan = _RayPlan(spec, out, keep_checkpoints, chunk_generations)
+        return _sweep_ray(plan, workers, ray_address, max_retries, bar, poll_seconds)
     finally:
         bar.close()
 
 
 def _sweep_local(
-    spec: SweepSpec, out: Path, workers: int, max_retries: int, bar: _Progress, poll_seconds: float
+    spec: SweepSpec,
+    out: Path,
+    workers: int,
+    max_retries: int,
+    keep_checkpoints: int,
+    bar: _Progress,
+    poll_seconds: float,
 ) -> dict[SweepRun, pd.DataFrame]:
     results: dict[SweepRun, pd.DataFrame] = {}
     failures: dict[SweepRun, int] = {}
@@ -329,6 +572,7 @@ def _sweep_local(
                     str(run_dir(out, *member)),
                     spec.settings_of(member.cell),
                     spec.policies,
+                    keep_checkpoints,
                 ): member
                 for member in todo
             }
@@ -360,9 +604,55 @@ def _sweep_local(
     return {key: results[key] for key in spec.runs}
 
 
+class _RayPlan(NamedTuple):
+    """The driver's side of a Ray sweep: what to run, where its files go, how to chunk it."""
+
+    spec: SweepSpec
+    out: Path
+    keep_checkpoints: int
+    chunk_generations: int
+
+    def next_chunk(self, member: SweepRun) -> RunChunk:
+        """The task that advances ``member`` from the newest checkpoint in its run directory."""
+        from evolution.api import CHECKPOINT_DIR
+        from evolution.runner import latest_checkpoint
+
+        newest = latest_checkpoint(run_dir(self.out, *member) / CHECKPOINT_DIR)
+        return RunChunk(
+            member.method,
+            member.seed,
+            self.spec.generations,
+            self.chunk_generations,
+            self.spec.settings_of(member.cell),
+            self.spec.policies,
+            self.keep_checkpoints,
+            None if newest is None else (newest.name, newest.read_bytes()),
+        )
+
+    def store(self, member: SweepRun, result: ChunkResult) -> None:
+        """Write a chunk's files into ``member``'s run directory, atomically, in the order
+        :func:`evolution.api.run` writes them (checkpoints, tables, records), then prune."""
+        from cyber_rodent.atomic import write_bytes
+        from evolution.api import CHECKPOINT_DIR, RUN_FILE
+        from evolution.runner.checkpoints import prune_checkpoints
+
+        directory = run_dir(self.out, *member)
+
+        def order(name: str) -> tuple[bool, bool, str]:
+            return (not name.startswith(f"{CHECKPOINT_DIR}/"), name == RUN_FILE, name)
+
+        for name in sorted(result.files, key=order):
+            relative = Path(name)
+            if relative.is_absolute() or ".." in relative.parts:
+                raise ValueError(f"a Ray task returned a file outside its run directory: {name}")
+            target = directory / relative
+            target.parent.mkdir(parents=True, exist_ok=True)
+            write_bytes(target, result.files[name])
+        prune_checkpoints(directory / CHECKPOINT_DIR, self.keep_checkpoints)
+
+
 def _sweep_ray(
-    spec: SweepSpec,
-    out: Path,
+    plan: _RayPlan,
     workers: int | None,
     address: str,
     max_retries: int,
@@ -388,37 +678,88 @@ def _sweep_ray(
         try:
             ray.init(**kwargs)
         except (ConnectionError, RuntimeError) as err:
-            raise ValueError(f"cannot connect to the Ray cluster at {address}: {err}") from None
+            hint = ""
+            if address != "local" and "RAY_AUTH_MODE" not in os.environ:
+                hint = (
+                    " (a cluster with token authentication, the default where `ray start` "
+                    "found ~/.ray/auth_token, needs RAY_AUTH_MODE=token and its token in "
+                    "~/.ray/auth_token or RAY_AUTH_TOKEN)"
+                )
+            raise ValueError(
+                f"cannot connect to the Ray cluster at {address}: {err}{hint}"
+            ) from None
     try:
-        remote = ray.remote(num_cpus=1, max_retries=max_retries, retry_exceptions=True)(run_one)
-        refs = {
-            remote.remote(
-                member.method,
-                member.seed,
-                spec.generations,
-                str(run_dir(out, *member).resolve()),
-                spec.settings_of(member.cell),
-                spec.policies,
-            ): member
-            for member in spec.runs
-        }
+        # Retries are the driver's, from the checkpoint it holds: Ray's own would resend a
+        # chunk's arguments, but count per chunk rather than per run.
+        remote = ray.remote(num_cpus=1, max_retries=0)(advance_run)
+        spec = plan.spec
+        todo = deque(spec.runs)
+        running: dict[Any, SweepRun] = {}
         results: dict[SweepRun, pd.DataFrame] = {}
+        failures: dict[SweepRun, int] = {}
         errors: dict[SweepRun, BaseException] = {}
-        pending = list(refs)
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1, timeout=poll_seconds)
-            bar.update()
+
+        def submit(member: SweepRun, error: BaseException | None = None) -> None:
+            task = plan.next_chunk(member)
+            if error is not None:
+                held = 0 if task.checkpoint is None else _generation_of(task.checkpoint[0])
+                cell = f" in {member.cell}" if member.cell else ""
+                why = (str(error).strip().splitlines() or [""])[0].split(". ")[0][:160]
+                print(
+                    f"sweep: {member.method} seed {member.seed}{cell}: {type(error).__name__}"
+                    f"{': ' + why if why else ''}; retry {failures[member]} of {max_retries} "
+                    f"from generation {held}",
+                    file=sys.stderr,
+                    flush=True,
+                )
+            running[remote.remote(task)] = member
+
+        refreshed = time.monotonic()
+        while todo or running:
+            # Runs under way continue first and new ones start in spec.runs order, as many as
+            # the cluster's CPUs (now, after nodes left or joined): a sweep stopped part-way has
+            # whole seeds done, as locally.
+            cpus = ray.cluster_resources().get("CPU", 0)  # type: ignore[no-untyped-call]
+            slots = max(1, int(cpus))
+            while todo and len(running) < min(slots, workers or slots):
+                submit(todo.popleft())
+            done, _ = ray.wait(list(running), num_returns=1, timeout=poll_seconds)
             for ref in done:
-                key = refs[ref]
+                member = running.pop(ref)
                 try:
-                    results[key] = ray.get(ref)
-                except Exception as err:  # retries exhausted
-                    errors[key] = err
+                    result: ChunkResult = ray.get(ref)
+                    plan.store(member, result)
+                except Exception as err:  # a lost node or worker, an error in the run
+                    failures[member] = failures.get(member, 0) + 1
+                    if failures[member] > max_retries:
+                        errors[member] = _cause(err)
+                    else:
+                        submit(member, _cause(err))  # from the driver's newest checkpoint
+                    continue
+                if result.completed >= spec.generations:
+                    results[member] = result.table
+                else:
+                    submit(member)
+            if not done or time.monotonic() - refreshed >= poll_seconds:
+                bar.update()
+                refreshed = time.monotonic()
         _raise_failures(errors)
         return {key: results[key] for key in spec.runs}
     finally:
         if started_here:
             ray.shutdown()
+
+
+def _generation_of(checkpoint: str) -> int:
+    """Generations completed when a checkpoint ``gen_NNNNN.ckpt`` was written."""
+    match = re.fullmatch(r"gen_(\d+)\.ckpt", checkpoint)
+    return int(match.group(1)) if match else 0
+
+
+def _cause(err: BaseException) -> BaseException:
+    """The error a Ray task raised, not Ray's wrapper with its remote traceback."""
+    cause = getattr(err, "cause", None)
+    return cause if isinstance(cause, BaseException) else err
 
 
 class SweepFailed(RuntimeError):
@@ -456,8 +797,6 @@ def load_sweep(
 
 
 def _method_of(path: Path) -> str | None:
-    import json
-
     try:
         record = json.loads((path / "run.json").read_text())
         method = record["config"]["method"]

@@ -1,0 +1,64 @@
+"""The Ray backend's unit of work without Ray: a run advanced chunk by chunk through
+:func:`evolution.sweep.advance_run`, its files kept only by the caller, ends with the files of
+one uninterrupted run, byte for byte."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from evolution.checkpoint import CheckpointError
+from evolution.sweep import KEEP_CHECKPOINTS, RunChunk, advance_run, run_one
+
+#: Two robots, four agents, short lives: a generation takes a fraction of a second.
+TINY = {"population_size": 4, "n_robots": 2, "lifetime_steps": 60, "time_sharing_steps": 30}
+GENERATIONS = 3
+
+
+def files_of(directory: Path) -> dict[str, bytes]:
+    return {
+        path.relative_to(directory).as_posix(): path.read_bytes()
+        for path in sorted(directory.rglob("*"))
+        if path.is_file()
+    }
+
+
+def test_chunks_give_the_files_of_an_uninterrupted_run(tmp_path: Path) -> None:
+    whole = tmp_path / "whole"
+    table = run_one("ee", 0, GENERATIONS, str(whole), TINY, "reactive")
+
+    held: dict[str, bytes] = {}  # the driver's copy of the run directory
+    checkpoint: tuple[str, bytes] | None = None
+    progress = []
+    while True:
+        task = RunChunk("ee", 0, GENERATIONS, 1, TINY, "reactive", KEEP_CHECKPOINTS, checkpoint)
+        result = advance_run(task)
+        progress.append(result.completed)
+        assert "events.csv" in result.files or result.completed < GENERATIONS
+        held.update(result.files)
+        kept = sorted(name for name in held if name.startswith("checkpoints/"))
+        for name in kept[:-KEEP_CHECKPOINTS]:
+            del held[name]
+        checkpoint = (Path(kept[-1]).name, held[kept[-1]])
+        if result.completed >= GENERATIONS:
+            break
+    assert progress == [1, 2, 3]  # one generation per chunk, each from the last checkpoint
+    assert sorted(held) == sorted(files_of(whole))
+    for name, data in files_of(whole).items():
+        assert held[name] == data, name
+    pd.testing.assert_frame_equal(result.table, table)
+
+    # A finished run's chunk runs nothing and writes no checkpoint, as a resume does.
+    again = advance_run(task._replace(checkpoint=checkpoint))
+    assert again.completed == GENERATIONS
+    assert not [name for name in again.files if name.startswith("checkpoints/")]
+    assert again.files["statistics.csv"] == held["statistics.csv"]
+
+
+def test_a_chunk_refuses_the_checkpoint_of_another_run() -> None:
+    first = advance_run(RunChunk("ee", 0, 1, 1, TINY, "reactive", KEEP_CHECKPOINTS, None))
+    checkpoint = ("gen_00001.ckpt", first.files["checkpoints/gen_00001.ckpt"])
+    with pytest.raises(CheckpointError):
+        advance_run(RunChunk("ee", 1, 2, 1, TINY, "reactive", KEEP_CHECKPOINTS, checkpoint))
