@@ -173,27 +173,52 @@ class SarsaLambda:
 
     # -- learning ----------------------------------------------------------------------------
 
-    def begin_episode(self, state: np.ndarray) -> int:
-        """Start an episode in ``state``: clear the traces and choose the first action."""
+    def begin_episode(self, state: np.ndarray, action: int | None = None) -> int:
+        """Start an episode in ``state``: clear the traces and choose the first action.
+
+        Args:
+            state: the first state.
+            action: take this action instead of choosing one (no random draw): to replay
+                recorded transitions, e.g. those of the in-life learner.
+        """
         self._trace[self._active] = 0.0
         self._active = np.empty(0, dtype=np.int64)
         features = self.coder.indices(state)
-        action = epsilon_greedy(self._q(features), self.config.epsilon, self.rng)
+        if action is None:
+            action = epsilon_greedy(self._q(features), self.config.epsilon, self.rng)
+        action = self._check_action(action)
         self._visit(features, action)
         return action
 
+    def _check_action(self, action: int) -> int:
+        if not 0 <= action < self.n_actions:
+            raise ValueError(f"action: must be in [0, {self.n_actions - 1}], got {action}")
+        return int(action)
+
     @overload
     def step(
-        self, reward: float, next_state: np.ndarray, terminal: Literal[False] = False
+        self,
+        reward: float,
+        next_state: np.ndarray,
+        terminal: Literal[False] = False,
+        action: int | None = None,
     ) -> int: ...
 
     @overload
     def step(
-        self, reward: float, next_state: np.ndarray | None, terminal: Literal[True]
+        self,
+        reward: float,
+        next_state: np.ndarray | None,
+        terminal: Literal[True],
+        action: int | None = None,
     ) -> None: ...
 
     def step(
-        self, reward: float, next_state: np.ndarray | None, terminal: bool = False
+        self,
+        reward: float,
+        next_state: np.ndarray | None,
+        terminal: bool = False,
+        action: int | None = None,
     ) -> int | None:
         """Learn from one transition and choose the next action.
 
@@ -201,6 +226,8 @@ class SarsaLambda:
             reward: reward received for the last action.
             next_state: the state reached (ignored when ``terminal``; may be ``None`` then).
             terminal: the episode ended in a true terminal state (its value is 0).
+            action: take this next action instead of choosing one (no random draw), to replay
+                recorded transitions; ignored when ``terminal``.
 
         Returns:
             The next action, or ``None`` after a terminal transition.
@@ -226,7 +253,9 @@ class SarsaLambda:
             raise ValueError("next_state: a non-terminal step needs the state reached")
         features = self.coder.indices(next_state)
         q_next = self._q(features)
-        action = epsilon_greedy(q_next, self.config.epsilon, self.rng)
+        if action is None:
+            action = epsilon_greedy(q_next, self.config.epsilon, self.rng)
+        action = self._check_action(action)
         delta += self.config.gamma * q_next[action]
         active = self._active
         trace = self._trace

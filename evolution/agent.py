@@ -6,7 +6,7 @@ another agent uses the robot), age, batteries captured, matings, and the (genome
 partner met at a mating.
 
 Genomes are shared between objects (an agent, the partner records that hold its genome, a spare
-list, a life record), so checkpoint states refer to them by index into one (G, 39) array built
+list, a life record), so checkpoint states refer to them by index into one (G, L) array built
 by a :class:`GenomePool` (docs/design.md §10): each genome is stored once, and a restore shares
 them again exactly as the run did.
 """
@@ -62,7 +62,7 @@ class GenomePool:
         return found
 
     def array(self) -> np.ndarray:
-        """(G, 39) the weights of every genome seen, by index."""
+        """(G, L) the genes of every genome seen, by index (L = 39, or 49 in learning mode)."""
         if not self._genomes:
             return np.zeros((0, GENOME_LENGTH))
         return np.stack([genome.weights for genome in self._genomes])
@@ -72,10 +72,10 @@ def genomes_from_array(weights: np.ndarray) -> list[Genome]:
     """The genomes of a :meth:`GenomePool.array` (one object per row).
 
     Raises:
-        ValueError: not a (G, 39) array of finite numbers.
+        ValueError: not a (G, L) array of finite numbers.
     """
     if not isinstance(weights, np.ndarray) or weights.ndim != 2:
-        raise ValueError("genomes must be a (G, 39) array")
+        raise ValueError("genomes must be a (G, L) array")
     return [Genome(row) for row in weights]
 
 

@@ -64,6 +64,9 @@ VERSIONS_FILE = "versions.json"
 ROBOT_STATISTICS_FILE = "statistics_per_robot.csv"
 ROBOT_COLUMNS = ("generation", "robot", "batteries_mean", "full_lifetimes", "completed")
 EVENTS_FILE = "events.csv"
+#: Learning mode's per-generation table: within-life captures and matings by age, and the
+#: evolved learning parameters (:meth:`evolution.learning.LifetimeLearning.record_rows`).
+LEARNING_FILE = "learning.csv"
 RUN_FILE = "run.json"
 CHECKPOINT_DIR = "checkpoints"
 
@@ -198,7 +201,7 @@ def run(
         _write_json(out / RUN_FILE, run_record(runner, generations))
 
         def write_results(r: EvolutionRunner) -> None:
-            write_tables(out, r.statistics(), robot_table(r))
+            write_tables(out, r.statistics(), robot_table(r), learning_table(r))
 
         table = runner.run(
             generations,
@@ -209,7 +212,7 @@ def run(
             progress=progress,
             on_generation=write_results,
         )
-        write_tables(out, table, robot_table(runner))
+        write_tables(out, table, robot_table(runner), learning_table(runner))
         with atomic_output(out / EVENTS_FILE) as temp:
             runner.events.write_csv(temp)
         _write_json(out / RUN_FILE, run_record(runner, generations))
@@ -222,6 +225,15 @@ def robot_table(runner: EvolutionRunner) -> pd.DataFrame:
     import pandas as pd
 
     return pd.DataFrame(runner.scheduler.stats.robot_records(), columns=list(ROBOT_COLUMNS))
+
+
+def learning_table(runner: EvolutionRunner) -> pd.DataFrame | None:
+    """Learning mode's per-generation table (None outside learning mode)."""
+    import pandas as pd
+
+    if runner.learning is None:
+        return None
+    return pd.DataFrame(runner.learning.record_rows())
 
 
 def holds_a_run(out: Path) -> bool:
@@ -275,9 +287,18 @@ def source_commit() -> str | None:
     return head + ("+dirty" if status else "") if head else None
 
 
-def write_tables(out: Path, statistics: pd.DataFrame, per_robot: pd.DataFrame) -> None:
-    """Write ``statistics.csv`` and ``statistics_per_robot.csv`` into ``out``, atomically."""
-    for name, table in ((STATISTICS_FILE, statistics), (ROBOT_STATISTICS_FILE, per_robot)):
+def write_tables(
+    out: Path,
+    statistics: pd.DataFrame,
+    per_robot: pd.DataFrame,
+    learning: pd.DataFrame | None = None,
+) -> None:
+    """Write ``statistics.csv``, ``statistics_per_robot.csv`` and, in learning mode,
+    ``learning.csv`` into ``out``, atomically."""
+    tables = [(STATISTICS_FILE, statistics), (ROBOT_STATISTICS_FILE, per_robot)]
+    if learning is not None:
+        tables.append((LEARNING_FILE, learning))
+    for name, table in tables:
         with atomic_output(out / name) as temp:
             table.to_csv(temp, index=False)
 

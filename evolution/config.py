@@ -26,6 +26,7 @@ from cyber_rodent.validation import (
     boolean,
     check_integer,
     check_number,
+    choice,
     integer,
     number,
     validate_fields,
@@ -34,6 +35,14 @@ from cyber_rodent.world import MAX_ROBOTS
 
 #: Number of evolved weights (paper §3.5): 3 for the recharge decision + 12 x 3 for selection.
 GENOME_LENGTH = 39
+#: Learning mode's genes after the controller weights (docs/design.md §11): four learning
+#: meta-parameters (learning rate, discount, trace decay, exploration ε) and the six weights
+#: of the potential-based shaping reward (two inputs for each of Mate, Forage, Search).
+N_META_GENES = 4
+N_SHAPING_GENES = 6
+N_LEARNING_GENES = N_META_GENES + N_SHAPING_GENES
+#: Length of a learning-mode genome.
+LEARNING_GENOME_LENGTH = GENOME_LENGTH + N_LEARNING_GENES
 #: Most virtual agents in a colony (100x the paper's 100). A robot runs its subpopulation one
 #: life after another, so a generation lasts about ``population_size / n_robots x
 #: lifetime_steps`` control steps: at this bound, 4 robots and the paper's lifetime, a million.
@@ -57,6 +66,10 @@ class GeneticConfig:
         mutation_low: lower bound of the uniform number added to a mutated weight (paper: -0.5).
         mutation_high: upper bound of the uniform number added to a mutated weight (paper: 0.5).
         tournament_size: individuals per tournament in the centralised GA (paper §4.1: 2).
+        meta_mutation_width: learning mode only: a mutated learning meta-gene (kept in [0, 1],
+            mapped onto its parameter's range) moves by U[-w, w] and is reflected back into
+            [0, 1]. The paper has no meta-genes; 0.1 moves a parameter by at most a tenth of
+            its range per mutation.
     """
 
     initial_weight_low: float = number(-1.0, source="paper Table 2")
@@ -66,6 +79,7 @@ class GeneticConfig:
     mutation_low: float = number(-0.5, source="paper Table 2")
     mutation_high: float = number(0.5, source="paper Table 2")
     tournament_size: int = integer(2, 1, unit="individuals", source="paper §4.1")
+    meta_mutation_width: float = number(0.1, 0.0, 1.0, low_open=True, source="docs/design.md §11")
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -76,6 +90,110 @@ class GeneticConfig:
             high_open=True,
         )
         check_number("mutation_low", self.mutation_low, high=self.mutation_high)
+
+
+#: Where a newborn's action values come from in learning mode.
+LEARNING_INITS = ("zero", "shipped")
+#: What an offspring inherits in learning mode.
+INHERITANCE_MODES = ("darwinian", "lamarckian")
+#: Precision of the learned action values.
+TABLE_DTYPES = ("float32", "float64")
+
+
+@dataclass(frozen=True)
+class LearningConfig:
+    """Learning mode: every virtual agent learns its behaviours during its life (docs/design.md
+    §11). Off by default: the paper's agents run the shipped, fixed behaviours.
+
+    Each agent keeps private action values for Mate, Forage and Search and updates the one it
+    runs with Sarsa(λ), tile coding and replacing traces (the algorithm of
+    ``behaviours/sarsa.py``), from its own rewards. Its genome adds four meta-genes in [0, 1],
+    each mapped linearly onto its range below, and six shaping weights (docs/design.md §11).
+
+    Attributes:
+        enabled: run in learning mode.
+        init: a newborn's action values: ``"zero"`` (all equal: it starts from scratch) or
+            ``"shipped"`` (the shipped trained behaviours).
+        inheritance: ``"darwinian"`` (genes only: every newborn starts from ``init``) or
+            ``"lamarckian"`` (an offspring starts from the learned values of the agent whose
+            slot it takes; spare-list and random genomes start from ``init``).
+        table_dtype: precision of the stored action values, ``"float32"`` (half the memory
+            and checkpoint size) or ``"float64"`` (the precision of ``behaviours/sarsa.py``).
+            The update itself always computes in float64.
+        alpha_low, alpha_high: range of the evolved step size α (for the whole feature
+            vector; each active tile moves by α / tilings), within (0, 1].
+        gamma_low, gamma_high: range of the evolved discount γ, within [0, 1].
+        lam_low, lam_high: range of the evolved trace decay λ, within [0, 1].
+        epsilon_low, epsilon_high: range of the evolved exploration rate ε of the ε-greedy
+            policy, within [0, 1].
+        goal_reward: reward of Forage's docking and of Mate's IR exchange (the training
+            reward of ``behaviours/``), ≥ 0.
+        step_cost: reward subtracted on every step of Forage and Mate, ≥ 0.
+        collision_penalty: Search's reward subtracted per step in contact, ≥ 0.
+        reference_speed: Search's forward speed (m/s) that earns the full progress reward.
+        trace_cutoff: traces below this are dropped (set to 0), in (0, 1), as in
+            ``behaviours/sarsa.py``.
+    """
+
+    enabled: bool = boolean(False, source="docs/design.md §11")
+    init: str = choice("zero", LEARNING_INITS, source="docs/design.md §11")
+    inheritance: str = choice("darwinian", INHERITANCE_MODES, source="docs/design.md §11")
+    table_dtype: str = choice("float32", TABLE_DTYPES, source="docs/design.md §11")
+    alpha_low: float = number(0.01, 0.0, 1.0, low_open=True, source="docs/design.md §11")
+    alpha_high: float = number(0.5, 0.0, 1.0, low_open=True, source="docs/design.md §11")
+    gamma_low: float = number(0.8, 0.0, 1.0, source="docs/design.md §11")
+    gamma_high: float = number(0.999, 0.0, 1.0, source="docs/design.md §11")
+    lam_low: float = number(0.0, 0.0, 1.0, source="docs/design.md §11")
+    lam_high: float = number(0.99, 0.0, 1.0, source="docs/design.md §11")
+    epsilon_low: float = number(0.0, 0.0, 1.0, source="docs/design.md §11")
+    epsilon_high: float = number(0.3, 0.0, 1.0, source="docs/design.md §11")
+    goal_reward: float = number(1.0, 0.0, 1e6, source="docs/design.md §9.22")
+    step_cost: float = number(0.02, 0.0, 1e6, source="docs/design.md §9.22")
+    collision_penalty: float = number(3.0, 0.0, 1e6, source="docs/design.md §9.22")
+    reference_speed: float = number(
+        0.5, 0.0, 1.3, low_open=True, unit="m/s", source="docs/design.md §9.22"
+    )
+    trace_cutoff: float = number(
+        1e-3, 0.0, 1.0, low_open=True, high_open=True, source="docs/design.md §9.23"
+    )
+
+    def __post_init__(self) -> None:
+        validate_fields(self, "learning.")
+        for name in ("alpha", "gamma", "lam", "epsilon"):
+            low, high = getattr(self, f"{name}_low"), getattr(self, f"{name}_high")
+            if low > high:
+                raise ValueError(
+                    f"learning.{name}_low: must be <= learning.{name}_high ({high}), got {low}"
+                )
+
+
+#: How the chance that a mating yields an offspring candidate depends on energy.
+@dataclass(frozen=True)
+class ReproductionConfig:
+    """Variants of reproduction from the Cyber Rodent literature (docs/design.md §9.27).
+
+    Attributes:
+        energy_dependent: a mating yields an offspring candidate (the partner's genome and
+            fitness, stored for the end of life) only with probability
+            ``p = clip(E / energy_full, 0, 1)``, E the partner's energy at the mating occasion;
+            the mating itself (and its count) happens regardless. Off (the paper): every
+            mating yields a candidate.
+        energy_full: the partner energy at and above which a mating always yields a candidate.
+    """
+
+    energy_dependent: bool = boolean(False, source="docs/design.md §9.27")
+    energy_full: float = number(
+        200.0, 0.0, ENERGY_LIMIT, low_open=True, source="docs/design.md §9.27"
+    )
+
+    def __post_init__(self) -> None:
+        validate_fields(self, "reproduction.")
+
+    def candidate_probability(self, partner_energy: float) -> float:
+        """The chance that a mating with a partner of this energy yields a candidate."""
+        if not self.energy_dependent:
+            return 1.0
+        return min(1.0, max(0.0, float(partner_energy) / self.energy_full))
 
 
 @dataclass(frozen=True)
@@ -107,6 +225,8 @@ class EvolutionConfig:
             generation that finish later (in lagging slots) are counted in
             ``StatisticsRecorder.late`` instead of a row.
         genetics: the genome and its operators (Table 2).
+        learning: learning mode (off by default; docs/design.md §11).
+        reproduction: reproduction variants (the paper's rule by default).
 
     The sizes are bounded so that a typo is refused before a run allocates or writes anything:
     at most :data:`MAX_POPULATION` agents, the robots that fit in the field
@@ -138,9 +258,17 @@ class EvolutionConfig:
         0.9, 0.0, 1.0, low_open=True, unit="share of slots", source="docs/design.md §9.17"
     )
     genetics: GeneticConfig = field(default_factory=GeneticConfig)
+    learning: LearningConfig = field(default_factory=LearningConfig)
+    reproduction: ReproductionConfig = field(default_factory=ReproductionConfig)
 
     def __post_init__(self) -> None:
         validate_fields(self)
+        if not isinstance(self.learning, LearningConfig):
+            raise ValueError(f"learning must be a LearningConfig, got {type(self.learning)!r}")
+        if not isinstance(self.reproduction, ReproductionConfig):
+            raise ValueError(
+                f"reproduction must be a ReproductionConfig, got {type(self.reproduction)!r}"
+            )
         check_integer("time_sharing_steps", self.time_sharing_steps, 1, self.lifetime_steps)
         check_integer("population_size", self.population_size, self.n_robots)
         if self.population_size % self.n_robots != 0:
@@ -154,6 +282,11 @@ class EvolutionConfig:
         check_integer(
             "genetics.tournament_size", self.genetics.tournament_size, 1, self.population_size
         )
+
+    @property
+    def genome_length(self) -> int:
+        """Genes of one genome: the controller's 39, plus the learning genes in learning mode."""
+        return LEARNING_GENOME_LENGTH if self.learning.enabled else GENOME_LENGTH
 
     @property
     def subpopulation_size(self) -> int:

@@ -32,9 +32,14 @@ from behaviours.kernels import (
     GreedyTables,
     InputBuffers,
     InputRules,
+    LearnedValues,
+    LearningEpisodes,
+    LearningStep,
     RangeSensors,
     greedy_commands,
     greedy_commands_reference,
+    learn_commands,
+    learn_commands_reference,
     map_inputs,
     map_inputs_reference,
 )
@@ -128,6 +133,19 @@ class Act(NamedTuple):
     """The acting stage's buffers: behaviours to wheel speeds, LED and Mate signal."""
 
     tables: GreedyTables  #: the three greedy behaviours
+    docked: Bools  #: (n,) the robot recharges (its LED stays dark if it continues)
+    command_speeds: Floats  #: (n_commands, 2) wheel speeds of each command, m/s
+    out: ActionBuffers
+
+
+class LearnAct(NamedTuple):
+    """Learning mode's acting stage: each agent's own learned behaviours (learning as they
+    act) to wheel speeds, LED and Mate signal."""
+
+    tables: GreedyTables  #: the behaviours' tile coders (their values are not read)
+    values: LearnedValues  #: every agent's learned values and learning parameters
+    episodes: LearningEpisodes  #: each robot's open learning episode
+    step: LearningStep  #: the step's tables, acting flags and exploration draws
     docked: Bools  #: (n,) the robot recharges (its LED stays dark if it continues)
     command_speeds: Floats  #: (n_commands, 2) wheel speeds of each command, m/s
     out: ActionBuffers
@@ -296,6 +314,42 @@ def sense_decide_act_reference(
     return status
 
 
+@jit
+def sense_decide_learn(
+    scene: GeometricScene, perceive: Perceive, decided: Decide, act: LearnAct
+) -> int:
+    """:func:`sense_decide_act` in learning mode: the agents' own learners act (and learn)
+    in place of the fixed greedy behaviours (:func:`behaviours.kernels.learn_commands`)."""
+    nearest(scene, perceive.nearest)
+    map_inputs(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
+    decide(decided.rules, decided.robots, perceive.out, decided.out)
+    status = learn_commands(
+        decided.out.behaviour, perceive.out.behaviour, act.tables, act.values, act.episodes,
+        act.step, act.out.commands,
+    )  # fmt: skip
+    if status != OK:
+        return status
+    steer(decided.out, act.docked, act.command_speeds, act.out)
+    return status
+
+
+def sense_decide_learn_reference(
+    scene: GeometricScene, perceive: Perceive, decided: Decide, act: LearnAct
+) -> int:
+    """:func:`sense_decide_learn` with the numpy references, in the same order."""
+    nearest_reference(scene, perceive.nearest)
+    map_inputs_reference(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
+    decide_reference(decided.rules, decided.robots, perceive.out, decided.out)
+    status = learn_commands_reference(
+        decided.out.behaviour, perceive.out.behaviour, act.tables, act.values, act.episodes,
+        act.step, act.out.commands,
+    )  # fmt: skip
+    if status != OK:
+        return status
+    steer_reference(decided.out, act.docked, act.command_speeds, act.out)
+    return status
+
+
 # --- scheduler ---------------------------------------------------------------------------------
 @jit
 def tick(counters: SlotCounters, outcome: StepOutcome, rules: ScheduleRules) -> bool:
@@ -342,6 +396,9 @@ def tick_reference(counters: SlotCounters, outcome: StepOutcome, rules: Schedule
 __all__ = [
     "Act",
     "ActionBuffers",
+    "LearnAct",
+    "sense_decide_learn",
+    "sense_decide_learn_reference",
     "Decide",
     "Perceive",
     "sense_decide_act",

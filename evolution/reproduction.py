@@ -86,18 +86,22 @@ def make_offspring(
 
 
 def draw_replacement(
-    spare_list: list[Genome], rng: np.random.Generator, genetics: GeneticConfig | None = None
+    spare_list: list[Genome],
+    rng: np.random.Generator,
+    genetics: GeneticConfig | None = None,
+    learning: bool = False,
 ) -> tuple[Genome, Origin]:
     """A new genome for the slot of an agent that died or never mated.
 
     Removes a uniformly chosen genome from ``spare_list`` (in place) and returns it with
-    :attr:`Origin.SPARE`; only if the list is empty makes a random genome (:attr:`Origin.RANDOM`).
-    Spare genomes were already mutated when they were made, so they are not mutated again.
+    :attr:`Origin.SPARE`; only if the list is empty makes a random genome (:attr:`Origin.RANDOM`,
+    with the learning genes if ``learning``). Spare genomes were already mutated when they were
+    made, so they are not mutated again.
     """
     if spare_list:
         index = int(rng.integers(len(spare_list)))
         return spare_list.pop(index), Origin.SPARE
-    return Genome.random(rng, genetics), Origin.RANDOM
+    return Genome.random(rng, genetics, learning), Origin.RANDOM
 
 
 def tournament(fitness: np.ndarray, rng: np.random.Generator, size: int = 2) -> int:

@@ -176,13 +176,20 @@ class TimeSharingScheduler:
         n, k = config.n_robots, config.subpopulation_size
         self.n_robots, self.subpopulation_size = n, k
         if initial_genomes is None:
-            genomes = [Genome.random(rng, config.genetics) for _ in range(n * k)]
+            learns = config.learning.enabled
+            genomes = [Genome.random(rng, config.genetics, learns) for _ in range(n * k)]
         else:
             genomes = list(initial_genomes)
             if len(genomes) != n * k or not all(isinstance(g, Genome) for g in genomes):
                 raise ValueError(
                     f"initial_genomes must be {n * k} Genome objects (population_size), "
                     f"got {len(genomes)}"
+                )
+            length = config.genome_length
+            if any(g.weights.shape[0] != length for g in genomes):
+                raise ValueError(
+                    f"initial_genomes must have {length} genes each "
+                    f"({'learning mode' if config.learning.enabled else 'the controller'})"
                 )
         self._rng = rng
         self.slots: list[list[VirtualAgent]] = [
@@ -229,6 +236,17 @@ class TimeSharingScheduler:
     def active_age(self) -> np.ndarray:
         """(n_robots,) age of each robot's active agent (a copy)."""
         return self._age.copy()
+
+    @property
+    def age_view(self) -> np.ndarray:
+        """(n_robots,) live read-only view of the active agents' ages (fetch once)."""
+        view = self._age.view()
+        view.flags.writeable = False
+        return view
+
+    def newborn_genomes(self) -> list[Genome]:
+        """The genomes of the agents in :attr:`birth_log`, in its order (before it is drained)."""
+        return [self.slots[robot][slot].genome for _, robot, slot, _, _ in self.birth_log]
 
     @property
     def slice_steps(self) -> np.ndarray:
@@ -335,13 +353,23 @@ class TimeSharingScheduler:
             if not (self.active[r] and self.active[m]):
                 raise ValueError(f"mating between robots {r} and {m} involves an idle robot")
         unit = self.config.fitness_time_unit
+        reproduction = self.config.reproduction
         fitness = {int(r): fitness_rule(self._batteries[r], self._age[r], unit) for r in partners}
         for r in partners:
             m = int(mated[r])
             partner_agent = self.slots[m][int(self.active_slot[m])]
             own_agent = self.slots[r][int(self.active_slot[r])]
-            own_agent.partners.append(MatingRecord(partner_agent.genome, fitness[m]))
             self._matings[r] += 1
+            if reproduction.energy_dependent:
+                # One draw per side, from the robot that keeps (or not) the candidate.
+                chance = reproduction.candidate_probability(self.active_energy[m])
+                if not self._mating_rng(int(r)).random() < chance:
+                    continue
+            own_agent.partners.append(MatingRecord(partner_agent.genome, fitness[m]))
+
+    def _mating_rng(self, robot: int) -> np.random.Generator:
+        """The generator of ``robot``'s energy-dependent candidate draws."""
+        return self._rng
 
     def _end_slot(self, robot: int, died: bool) -> None:
         slot = int(self.active_slot[robot])
@@ -383,7 +411,7 @@ class TimeSharingScheduler:
 
     def _load(self, robot: int) -> None:
         agent = self.slots[robot][int(self.active_slot[robot])]
-        self._weights[robot] = agent.genome.weights
+        self._weights[robot] = agent.genome.controller
         self.active_energy[robot] = agent.energy
         self._age[robot] = agent.age
         self._batteries[robot] = agent.batteries
@@ -421,7 +449,7 @@ class TimeSharingScheduler:
     def state(self) -> dict[str, Any]:
         """The scheduler's complete state as plain data (docs/design.md §10).
 
-        Every genome is stored once, in ``genomes`` (a (G, 39) array), and referred to by its
+        Every genome is stored once, in ``genomes`` (a (G, L) array), and referred to by its
         index from the agents, their partner records, the life records and the spare lists, so
         a restore shares genome objects exactly as the run did. The per-robot arrays are saved
         as they are (the active agent's counters live there, not in its agent object), the
@@ -542,9 +570,13 @@ class EmbodiedEvolution(TimeSharingScheduler):
         flat = self.slot_generation.ravel()
         return int(np.partition(flat, flat.size - self._quorum)[flat.size - self._quorum])
 
+    def _mating_rng(self, robot: int) -> np.random.Generator:
+        return self.robot_rngs[robot]
+
     def _on_death(self, robot: int, slot: int) -> None:
+        cfg = self.config
         genome, origin = draw_replacement(
-            self.spare_lists[robot], self.robot_rngs[robot], self.config.genetics
+            self.spare_lists[robot], self.robot_rngs[robot], cfg.genetics, cfg.learning.enabled
         )
         self._new_agent(robot, slot, genome, origin)
 
@@ -555,7 +587,9 @@ class EmbodiedEvolution(TimeSharingScheduler):
         partner = agent.fittest_partner()
         rng = self.robot_rngs[robot]
         if partner is None:
-            genome, origin = draw_replacement(self.spare_lists[robot], rng, cfg.genetics)
+            genome, origin = draw_replacement(
+                self.spare_lists[robot], rng, cfg.genetics, cfg.learning.enabled
+            )
         else:
             result = make_offspring(
                 agent.genome, agent.fitness(cfg.fitness_time_unit), partner, rng, cfg.genetics
@@ -617,9 +651,13 @@ class CentralisedEvolution(TimeSharingScheduler):
 
     def ce_fitness(self, agent: VirtualAgent) -> float:
         """Selection fitness: batteries / (age / 100) if the agent mated (and, by default,
-        survived its lifetime), else 0."""
+        survived its lifetime), else 0.
+
+        "Mated" means a mating that yielded an offspring candidate: every mating under the
+        paper's rule, only the lucky draws under ``reproduction.energy_dependent``.
+        """
         cfg = self.config
-        if agent.matings < 1 or (cfg.ce_fitness_requires_survival and agent.dead):
+        if not agent.partners or (cfg.ce_fitness_requires_survival and agent.dead):
             return 0.0
         return agent.fitness(cfg.fitness_time_unit)
 

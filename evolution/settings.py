@@ -6,6 +6,8 @@ dataclasses. Each scalar field of that tree is one key, named by its section and
 
 - ``evolution.<field>``: :class:`~evolution.config.EvolutionConfig` (paper Table 1);
 - ``genetic.<field>``: :class:`~evolution.config.GeneticConfig` (paper Table 2);
+- ``learning.<field>``: :class:`~evolution.config.LearningConfig` (learning mode);
+- ``reproduction.<field>``: :class:`~evolution.config.ReproductionConfig` (its variants);
 - ``survival.<field>``: :class:`~cyber_rodent.survival.SurvivalConfig` (the world's rules);
 - ``world.<field>``: :class:`~cyber_rodent.world.WorldConfig` (the field and its physics);
 - ``camera.<field>``, ``camera.noise.<field>``, ``camera.led.<field>``, ...:
@@ -55,6 +57,8 @@ from evolution.runner import RunConfig
 SECTIONS: dict[str, tuple[tuple[str, ...], str]] = {
     "evolution": (("evolution",), "paper Table 1"),
     "genetic": (("evolution", "genetics"), "paper Table 2"),
+    "learning": (("evolution", "learning"), "docs/design.md §11"),
+    "reproduction": (("evolution", "reproduction"), "docs/design.md §9.27"),
     "survival": (("survival",), "docs/design.md §9"),
     "world": (("world",), "docs/design.md §9"),
     "camera": (("camera",), "docs/design.md §6"),
@@ -67,7 +71,9 @@ SHARED_KEYS = {
     "world.n_robots": "evolution.n_robots",
 }
 #: Fields of a section that are not settings (nested configs are reached through their keys).
-_NOT_SETTINGS: dict[tuple[str, ...], set[str]] = {("evolution",): {"genetics"}}
+_NOT_SETTINGS: dict[tuple[str, ...], set[str]] = {
+    ("evolution",): {"genetics", "learning", "reproduction"}
+}
 
 
 @dataclass(frozen=True)

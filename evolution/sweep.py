@@ -286,6 +286,7 @@ def advance_run(task: RunChunk) -> ChunkResult:
         EVENTS_FILE,
         RUN_FILE,
         check_run_config,
+        learning_table,
         make_config,
         robot_table,
         run_record,
@@ -324,7 +325,7 @@ def advance_run(task: RunChunk) -> ChunkResult:
                 checkpoint_every=1,
                 keep_checkpoints=task.keep_checkpoints,
             )
-            write_tables(out, table, robot_table(runner))
+            write_tables(out, table, robot_table(runner), learning_table(runner))
             completed = runner.completed_generations
             if completed >= task.generations:  # api.run writes the event log at the end
                 runner.events.write_csv(out / EVENTS_FILE)

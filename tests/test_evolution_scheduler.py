@@ -614,3 +614,53 @@ def test_compiled_tick_equals_numpy(method) -> None:
     np.testing.assert_array_equal(a.active_energy, b.active_energy)
     _assert_same_state(a.stats.state(), b.stats.state())
     _assert_same_state(a.state(), b.state())  # agents, RNGs and spare lists too
+
+
+# --- reproduction variants -----------------------------------------------------------------
+def test_candidate_probability_by_hand() -> None:
+    """p = clip(E / energy_full, 0, 1): energy 150 of 200 -> 0.75; 250 -> 1; 0 -> 0; off -> 1."""
+    from evolution.config import ReproductionConfig
+
+    variant = ReproductionConfig(energy_dependent=True, energy_full=200.0)
+    assert variant.candidate_probability(150.0) == 0.75
+    assert variant.candidate_probability(250.0) == 1.0
+    assert variant.candidate_probability(0.0) == 0.0
+    assert ReproductionConfig().candidate_probability(0.0) == 1.0
+
+
+@pytest.mark.parametrize("method", ["ee", "ce"])
+def test_energy_dependent_matings_yield_candidates_by_draw(method: str) -> None:
+    """Robot 0 (energy 150) and robot 1 (energy 30) mate: robot 1 keeps robot 0's genome with
+    p = 0.75, robot 0 keeps robot 1's with p = 0.15; each side draws once, in robot order, from
+    its robot's generator (EE) or the central one (CE). Both count the mating either way."""
+    from evolution.config import ReproductionConfig
+
+    cfg = EvolutionConfig(
+        population_size=8, n_robots=2,
+        reproduction=ReproductionConfig(energy_dependent=True, energy_full=200.0),
+    )  # fmt: skip
+    scheduler_cls = EmbodiedEvolution if method == "ee" else CentralisedEvolution
+    outcomes = set()
+    for seed in range(40):
+        scheduler = scheduler_cls(cfg, np.random.default_rng(seed), _numbered(8))
+        if isinstance(scheduler, EmbodiedEvolution):
+            draws = [copy.deepcopy(scheduler.robot_rngs[r]).random() for r in (0, 1)]
+        else:
+            twin = copy.deepcopy(scheduler._rng)
+            draws = [twin.random(), twin.random()]
+        _step(scheduler, energy={0: 150.0, 1: 30.0}, mated=((0, 1),))
+        a, b = scheduler.agent(0, 0), scheduler.agent(1, 0)
+        assert a.matings == b.matings == 1
+        assert len(a.partners) == int(draws[0] < 0.15)  # robot 0 keeps robot 1's genome
+        assert len(b.partners) == int(draws[1] < 0.75)
+        outcomes.add((len(a.partners), len(b.partners)))
+    assert len(outcomes) >= 3  # the draws decide
+
+
+def test_paper_rule_keeps_every_mating_as_a_candidate() -> None:
+    cfg = EvolutionConfig(population_size=8, n_robots=2)
+    ee = EmbodiedEvolution(cfg, np.random.default_rng(0), _numbered(8))
+    state = copy.deepcopy(ee.robot_rngs[0].bit_generator.state)
+    _step(ee, energy={0: 1.0, 1: 1.0}, mated=((0, 1),))
+    assert len(ee.agent(0, 0).partners) == len(ee.agent(1, 0).partners) == 1
+    assert ee.robot_rngs[0].bit_generator.state == state  # no draw

@@ -13,7 +13,12 @@ import pytest
 from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.world import WorldConfig
 from evolution.api import make_config
-from evolution.config import EvolutionConfig, GeneticConfig
+from evolution.config import (
+    EvolutionConfig,
+    GeneticConfig,
+    LearningConfig,
+    ReproductionConfig,
+)
 from evolution.grid import Cell, cells, compare_cells, run_final_means
 from evolution.runner import RunConfig
 from evolution.settings import (
@@ -38,10 +43,12 @@ def test_every_field_of_every_section_is_a_key() -> None:
         "genetic": GeneticConfig,
         "survival": SurvivalConfig,
         "world": WorldConfig,
+        "learning": LearningConfig,
+        "reproduction": ReproductionConfig,
     }
     for prefix, cls in sections.items():
         for f in dataclasses.fields(cls):
-            if f.name != "genetics":
+            if f.name not in ("genetics", "learning", "reproduction"):  # their own sections
                 assert f"{prefix}.{f.name}" in keys
     for key in ("camera.height", "camera.noise.dropout", "camera.led.hue_low", "vision"):
         assert key in keys

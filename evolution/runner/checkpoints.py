@@ -15,6 +15,8 @@ state is::
     world               evolution.runner.world_state.capture_world(): MuJoCo, the survival
                         world, the vision provider's generator
     range_noise         the range-sensor noise generator's state (hardware profile), or None
+    learning            LifetimeLearning.state() in learning mode (learned values, traces,
+                        open episodes, the exploration stream, the within-life record), or None
 
 Loading rebuilds a runner from the config, seed and policies, then writes the state into it
 in place (the compiled step's bound buffers stay valid), so it continues bit-identically. The
@@ -46,6 +48,7 @@ from evolution.checkpoint import (
     read_header,
     save_checkpoint,
 )
+from evolution.config import LearningConfig, ReproductionConfig
 from evolution.genome import Genome
 from evolution.runner.config import RunConfig
 from evolution.runner.world_state import capture_world, restore_world
@@ -99,14 +102,18 @@ def genomes_identity(genomes: Sequence[Genome] | None) -> str | None:
     return digest.hexdigest()
 
 
-#: Config fields added after checkpoints were first written, with the default that reproduces
-#: the behaviour before them: at that default they are left out of the fingerprint, so older
-#: checkpoints still resume.
-LATER_FIELDS: tuple[tuple[str, str, object], ...] = (
+#: Config fields added after checkpoints were first written (their path in the config, then
+#: the default that reproduces the behaviour before them): at that default they are left out
+#: of the fingerprint, so older checkpoints still resume.
+LATER_FIELDS: tuple[tuple[Any, ...], ...] = (
+    ("evolution", "genetics", "meta_mutation_width", 0.1),
+    ("evolution", "learning", dataclasses.asdict(LearningConfig())),
+    ("evolution", "reproduction", dataclasses.asdict(ReproductionConfig())),
     ("survival", "capture_rule", "docking"),
     ("survival", "mate_reflex", False),
     ("world", "pack_gap", 0.3),
     ("world", "pack_wall_clearance", 0.2),
+    ("world", "pack_reactivation_steps", 0),
 )
 
 
@@ -118,9 +125,12 @@ def run_fingerprint(
     run = dataclasses.asdict(config)
     if run.get("profile", 0) is None:
         del run["profile"]  # runs without a profile keep the fingerprints they always had
-    for section, name, default in LATER_FIELDS:
-        if run[section].get(name) == default:
-            del run[section][name]  # likewise runs that leave a later field at its default
+    for *path, name, default in LATER_FIELDS:
+        section = run
+        for part in path:
+            section = section.get(part, {})
+        if name in section and section[name] == default:
+            del section[name]  # likewise runs that leave a later field at its default
     fields: dict[str, Any] = {
         "run": run,
         "seed": seed,
@@ -146,6 +156,7 @@ def runner_state(runner: EvolutionRunner) -> dict[str, Any]:
         "events": runner.events.state(),
         "world": capture_world(runner.survival, runner.vision),
         "range_noise": None if noise is None else noise.rng.bit_generator.state,
+        "learning": None if runner.learning is None else runner.learning.state(),
     }
 
 
@@ -167,6 +178,14 @@ def restore_runner(runner: EvolutionRunner, state: dict[str, Any]) -> None:
         raise ValueError("the range-sensor noise generator does not match this run's profile")
     if noise is not None:
         noise.rng.bit_generator.state = saved
+    learning, learned = runner.learning, state.get("learning")
+    if (learning is None) != (learned is None):
+        raise ValueError(
+            "learning.enabled: the checkpoint was written in "
+            f"{'learning' if learned is not None else 'fixed-behaviour'} mode"
+        )
+    if learning is not None and learned is not None:
+        learning.load_state(learned)
 
 
 # --- files ----------------------------------------------------------------------------------

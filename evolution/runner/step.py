@@ -57,13 +57,17 @@ from evolution.kernels import (
     Act,
     ActionBuffers,
     Decide,
+    LearnAct,
     Perceive,
     RobotState,
     sense_decide_act,
     sense_decide_act_reference,
+    sense_decide_learn,
+    sense_decide_learn_reference,
     steer,
     steer_reference,
 )
+from evolution.learning import LifetimeLearning
 from evolution.runner.checkpoints import (
     genomes_identity,
     load_run,
@@ -145,8 +149,11 @@ class EvolutionRunner:
             config, self.seed, self.policies_id, self.initial_genomes_id
         )
 
-        # A fourth child (the hardware profile's) leaves the first three streams unchanged.
-        world_ss, scheduler_ss, vision_ss, profile_ss = np.random.SeedSequence(self.seed).spawn(4)
+        # Later children (the hardware profile's, the learner's) leave the first streams as
+        # they were.
+        world_ss, scheduler_ss, vision_ss, profile_ss, learning_ss = np.random.SeedSequence(
+            self.seed
+        ).spawn(5)
         world_rng = np.random.default_rng(world_ss)
         self.survival = SurvivalWorld(config.world, config.survival, world_rng, backend=backend)
         self.world = self.survival.world
@@ -175,6 +182,21 @@ class EvolutionRunner:
         self.perception = Perception(
             self.world, self.vision, range_noise=self.range_noise, backend=backend
         )
+        #: Learning mode's in-life learner (None: the fixed behaviours of the paper).
+        self.learning: LifetimeLearning | None = None
+        if evo.learning.enabled:
+            tables = self.policies.tables
+            if tables is None:
+                raise ValueError(
+                    "learning.enabled: learning mode needs tile-coded behaviours (the shipped "
+                    "or trained ones), not the hand-written reactive ones"
+                )
+            self.learning = LifetimeLearning(
+                evo, tables, self.survival, np.random.default_rng(learning_ss), backend
+            )
+            self.learning.load_population(
+                self.scheduler.population(), self.scheduler.slot_generation
+            )
         self.action = ActionBuffers(
             commands=np.zeros(n, dtype=np.int64),
             wheels=np.zeros((n, 2)),
@@ -203,7 +225,25 @@ class EvolutionRunner:
             evo.max_recharge_steps, backend=self.backend,
         )  # fmt: skip
         tables = self.policies.tables
-        if perception.fused and tables is not None:
+        learning = self.learning
+        if learning is not None and perception.fused:
+            assert isinstance(self.vision, GeometricVision) and tables is not None
+            perceive = Perceive(
+                perception.sensors, perception.nearest, perception.rules, perception.inputs
+            )
+            decided = Decide(self.controller.rules, robots, self.controller.buffers)
+            learn_act = LearnAct(
+                tables, learning.values, learning.episodes, learning.step_buffers,
+                survival.docked, COMMAND_SPEEDS, self.action,
+            )  # fmt: skip
+            learn_kernel = pick(self.backend, sense_decide_learn, sense_decide_learn_reference)
+            fused_learning = bind(learn_kernel, self.vision.scene, perceive, decided, learn_act)
+
+            def sense_decide_learn_fused() -> None:
+                raise_for_status(fused_learning())
+
+            self.sense_decide_act = sense_decide_learn_fused
+        elif perception.fused and tables is not None:
             # Geometric vision without noise, no range noise, tile-coded behaviours: one call.
             assert isinstance(self.vision, GeometricVision)
             perceive = Perceive(
@@ -233,6 +273,9 @@ class EvolutionRunner:
         (``SurvivalWorld.step``), then the schedule (``scheduler.on_step``): time sharing,
         matings, deaths and offspring. ``docs/design.md`` §3 draws the data flow.
         """
+        scheduler, learning = self.scheduler, self.learning
+        if learning is not None:  # learning mode: who acts, the exploration draws
+            learning.prepare(scheduler.active_slot, scheduler.active)
         # sense → decide → act: one compiled call on the default path
         self.sense_decide_act()
         # physics → events: commands, the physics substeps, energy, docking, mating
@@ -241,16 +284,20 @@ class EvolutionRunner:
             action.wheels, action.led, action.mate, self.controller.continue_recharge
         )
         self.steps += 1
+        if learning is not None:  # learning mode: rewards, terminal transitions
+            learning.observe(events, scheduler.age_view)
         if events.any:
             self._log_world_events(events)
         # schedule: ageing, time sharing, matings, deaths, offspring
-        switched = self.scheduler.on_step(
+        switched = scheduler.on_step(
             self.survival.energy, events.died, events.captured, events.mate_partner
         )
         if not np.count_nonzero(switched):
             return False
         self._load_switched(switched)
-        if self.scheduler.birth_log:
+        if scheduler.birth_log:
+            if learning is not None:  # newborns' parameters and values
+                learning.on_births(scheduler.birth_log, scheduler.newborn_genomes())
             self._log_births()
         return self._close_generations()
 
@@ -260,9 +307,14 @@ class EvolutionRunner:
         :class:`Perception`), and behaviours that are not tile-coded (run in Python)."""
         inputs = self.perception.update()
         self.controller.decide()
-        self.policies.commands(
-            self.controller.behaviour, inputs.behaviour, out=self.action.commands
-        )
+        if self.learning is not None:
+            self.learning.commands(
+                self.controller.behaviour, inputs.behaviour, self.action.commands
+            )
+        else:
+            self.policies.commands(
+                self.controller.behaviour, inputs.behaviour, out=self.action.commands
+            )
         self._steer()
 
     def remember_docked_agents(self) -> None:
