@@ -163,7 +163,7 @@ class LearningConfig:
             low, high = getattr(self, f"{name}_low"), getattr(self, f"{name}_high")
             if low > high:
                 raise ValueError(
-                    f"learning.{name}_low: must be <= learning.{name}_high ({high}), got {low}"
+                    f"learning.{name}_low must be <= learning.{name}_high ({high}), got {low}"
                 )
 
 

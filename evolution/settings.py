@@ -463,10 +463,16 @@ def apply(base: RunConfig, values: Mapping[str, Any]) -> RunConfig:
 
 
 def _key_prefix(path: tuple[str, ...]) -> str:
+    """The dotted key prefix of the config at ``path``: its most specific section's."""
+    best: tuple[str, tuple[str, ...]] | None = None
     for prefix, (section_path, _) in SECTIONS.items():
         if path[: len(section_path)] == section_path:
-            return ".".join((prefix, *path[len(section_path) :]))
-    return ".".join(path)
+            if best is None or len(section_path) > len(best[1]):
+                best = (prefix, section_path)
+    if best is None:
+        return ".".join(path)
+    prefix, section_path = best
+    return ".".join((prefix, *path[len(section_path) :]))
 
 
 def _replace(config: Any, changes: Mapping[str, Any], prefix: str) -> Any:

@@ -421,7 +421,7 @@ def test_bad_learning_settings(field: str, value: Any, message: str) -> None:
 
 
 def test_a_range_must_not_be_upside_down() -> None:
-    with pytest.raises(ValueError, match=r"learning.alpha_low: must be <= learning.alpha_high"):
+    with pytest.raises(ValueError, match=r"learning.alpha_low must be <= learning.alpha_high"):
         LearningConfig(alpha_low=0.6, alpha_high=0.5)
 
 

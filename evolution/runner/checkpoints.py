@@ -242,8 +242,20 @@ def load_run(
         fingerprint = run_fingerprint(
             config, check_integer("seed", seed, 0), policies_id, genomes_identity(initial)
         )
-    state = load_checkpoint(path, kind=kind, fingerprint=fingerprint)
     from evolution.experiment import run_config_from_record  # imports the runner: not at the top
+
+    try:
+        state = load_checkpoint(path, kind=kind, fingerprint=fingerprint)
+    except CheckpointError as error:
+        if expect is None or "fingerprint" not in str(error):
+            raise
+        differences = _setting_differences(path, kind, expect[0])
+        if not differences:
+            raise
+        raise CheckpointError(
+            f"{path}: the run was started with other settings ({differences}); resume it "
+            "with the settings it was started with"
+        ) from None
 
     try:
         config = run_config_from_record(state["config"])
@@ -268,6 +280,24 @@ def load_run(
         runner.close()
         raise CheckpointError(f"{path}: cannot restore this checkpoint ({error!r})") from error
     return runner
+
+
+def _setting_differences(path: Path, kind: str, config: RunConfig) -> str:
+    """The settings in which a checkpoint's run differs from ``config``, in words ("" if it
+    cannot be read or none differ: then the seed or the policies do)."""
+    from evolution.experiment import run_config_from_record
+    from evolution.settings import settings
+
+    try:
+        saved = run_config_from_record(load_checkpoint(path, kind=kind)["config"])
+    except (CheckpointError, ValueError, KeyError, TypeError):
+        return ""
+    there, here = settings(saved), settings(config)
+    return ", ".join(
+        f"{key} = {there[key].default!r} there, {here[key].default!r} here"
+        for key in here
+        if key in there and there[key].default != here[key].default
+    )
 
 
 def checkpoint_path(directory: str | os.PathLike[str], generation: int) -> Path:
