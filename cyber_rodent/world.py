@@ -29,6 +29,13 @@ from cyber_rodent.validation import integer, number, validate_fields
 #: Colours of the LED (RGBA). Off is dark green, not invisible: a real LED is still there.
 LED_ON_RGBA = np.array([0.1, 1.0, 0.1, 1.0])
 LED_OFF_RGBA = np.array([0.05, 0.15, 0.05, 1.0])
+#: Colour (RGBA) of an inactive pack's body (``WorldConfig.pack_reactivation_steps``): a dark,
+#: unsaturated grey that no colour class of the camera's segmentation takes for blue.
+PACK_INACTIVE_RGBA = np.array([0.15, 0.15, 0.15, 1.0])
+#: Upper bound of ``WorldConfig.pack_reactivation_steps``, the same as the survival rules' step
+#: counts (``cyber_rodent.survival.config.MAX_STEP_COUNT``): 1e6 control steps are longer than
+#: any experiment; a larger count is a typo.
+MAX_REACTIVATION_STEPS = 1_000_000
 
 _PLACEMENT_MARGIN = 0.02  # m, extra gap between placed bodies and to the walls
 _MAX_PACKING_DENSITY = 0.4  # share of the usable field area that placed discs may cover
@@ -122,6 +129,14 @@ class WorldConfig:
         pack_wall_clearance: smallest gap between a pack's edge and a wall at
             :meth:`World.reset`, m (half the pack gap if that is more). The default 0.2 m lets
             a robot (18 cm wide) pass between a pack and a wall (docs/design.md §9.18).
+        pack_reactivation_steps: control steps a pack stays inactive after a robot docks onto
+            it (docs/design.md §9.26). A docking during control step t makes the pack inactive
+            at once, for the rest of step t and the N control steps after it (t+1 .. t+N); it
+            is active again from control step t+N+1 (seen by that step's vision, dockable in
+            that step's docking). An inactive pack is dark (invisible to both vision providers)
+            and takes no new docking, but it is still a body that collides and hides what is
+            behind it; a robot already docked onto it keeps recharging. 0, the default, is the
+            paper's rule: packs are always available.
 
     The counts are bounded by what fits in the field: :data:`MAX_ROBOTS` and :data:`MAX_PACKS`
     (at the default pack gap and wall clearance), the packs alone in the square the wall
@@ -135,6 +150,9 @@ class WorldConfig:
     pack_gap: float = number(PACK_GAP, 0.0, 1.5, unit="m", source="docs/design.md §9.18")
     pack_wall_clearance: float = number(
         PACK_WALL_CLEARANCE, 0.0, 0.8, unit="m", source="docs/design.md §9.18"
+    )
+    pack_reactivation_steps: int = integer(
+        0, 0, MAX_REACTIVATION_STEPS, unit="control steps", source="docs/design.md §9.26"
     )
 
     def __post_init__(self) -> None:
@@ -208,6 +226,8 @@ class World:
         self.data: mujoco.MjData = self.physics.data.ptr
         self._index()
         self.led_on = np.zeros(self.config.n_robots, dtype=bool)
+        #: (n_packs,) the pack shows its colour and takes dockings (``set_pack_active``).
+        self.pack_active = np.ones(self.config.n_packs, dtype=bool)
         self.reset(rng if rng is not None else np.random.default_rng(0))
 
     # --- indexing (once, off the hot path) --------------------------------------------------
@@ -291,6 +311,8 @@ class World:
             ],
             dtype=np.int64,
         )
+        #: (n_packs, 4) each pack body's own colour, restored when the pack is active again.
+        self.pack_rgba = m.geom_rgba[self.pack_geom].astype(np.float64)
         self.top_camera = obj_id(mujoco.mjtObj.mjOBJ_CAMERA, C.TOP_CAMERA)
         # Wheel radius and top speed read from the compiled model (they must match constants).
         wheel_geom = obj_id(mujoco.mjtObj.mjOBJ_GEOM, C.robot_prefix(0) + "left_wheel_contact")
@@ -306,7 +328,8 @@ class World:
 
         Robots get uniformly random headings. Placement uses rejection sampling with clearance
         ``BODY_RADIUS`` / ``PACK_RADIUS`` plus a margin, from walls and from each other; packs
-        keep ``pack_gap`` between them and ``pack_wall_clearance`` from the walls.
+        keep ``pack_gap`` between them and ``pack_wall_clearance`` from the walls. Every pack is
+        active again.
         """
         mujoco.mj_resetData(self.model, self.data)
         cfg = self.config
@@ -327,6 +350,8 @@ class World:
             self.model.body_pos[self.pack_body[j], :2] = centres[n + j]
         self.led_on[:] = False
         self.model.geom_rgba[self.led_geom] = LED_OFF_RGBA
+        self.pack_active[:] = True
+        self.model.geom_rgba[self.pack_geom] = self.pack_rgba
         mujoco.mj_forward(self.model, self.data)
 
     def set_robot_pose(self, i: int, x: float, y: float, yaw: float) -> None:
@@ -405,6 +430,15 @@ class World:
             self.led_on[robot] = bool(on)
         self.model.geom_rgba[self.led_geom] = np.where(
             self.led_on[:, None], LED_ON_RGBA, LED_OFF_RGBA
+        )
+
+    def set_pack_active(self, pack: int, active: bool) -> None:
+        """Show pack ``pack`` in its colour and let robots dock onto it, or make it inactive:
+        dark grey (:data:`PACK_INACTIVE_RGBA`), invisible to vision, refusing new dockings
+        (``WorldConfig.pack_reactivation_steps``)."""
+        self.pack_active[pack] = bool(active)
+        self.model.geom_rgba[self.pack_geom[pack]] = (
+            self.pack_rgba[pack] if active else PACK_INACTIVE_RGBA
         )
 
     @property

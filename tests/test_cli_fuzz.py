@@ -80,6 +80,10 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
         (["evolve", "--policies", "smart"], "invalid choice"),
         (["evolve", "--bogus-flag"], "unrecognized arguments"),
         (["evolve", "stray"], "unrecognized arguments"),
+        (
+            ["evolve", "--set", "world.pack_reactivation_steps=-1", "--out", "{new}"],
+            "world.pack_reactivation_steps must be an integer in [0, 1000000], got -1",
+        ),
     ],
     "sweep": [
         (["sweep"], "--out"),

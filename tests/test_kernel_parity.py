@@ -981,3 +981,190 @@ def test_mate_matches_its_reference(scene_world: World) -> None:
         grown += int((ports_c.streak > streak).any())
         reset += int(((ports_c.streak == 0) & (streak > 0)).any())
     assert exchanged >= 2 and grown >= 5 and reset >= 10, (exchanged, grown, reset)
+
+
+# --- pack reactivation (WorldConfig.pack_reactivation_steps) -----------------------------------
+def test_count_down_packs_matches_its_reference() -> None:
+    """Inactive packs' countdowns on random states: those that run out are active again in
+    their own colour, the others stay dark; the count of packs still inactive."""
+    rng = np.random.default_rng(21)
+    world = World(WorldConfig(n_robots=2, n_packs=10))
+    back = still = 0
+    for _ in range(100):
+        countdown = np.where(rng.random(10) < 0.6, rng.integers(1, 4, 10), 0)
+        active = countdown == 0
+        rgba = world.model.geom_rgba.copy()
+        rgba[world.pack_geom[~active]] = (0.15, 0.15, 0.15, 1.0)
+        packs = survival_kernels.PackAvailability(
+            countdown=countdown.astype(np.int64),
+            active=active,
+            geom_rgba=rgba,
+            pack_geom=np.asarray(world.pack_geom, dtype=np.int64),
+            pack_rgba=world.pack_rgba,
+        )
+        ran = []
+        for kernel in (
+            survival_kernels.count_down_packs,
+            survival_kernels.count_down_packs_reference,
+        ):
+            args = _copy(packs)
+            ran.append((kernel(args), args))
+        (left_c, out_c), (left_r, out_r) = ran
+        assert left_c == left_r == int((countdown > 1).sum())
+        _assert_equal(out_c, out_r)
+        np.testing.assert_array_equal(out_c.countdown, np.maximum(countdown - 1, 0))
+        np.testing.assert_array_equal(out_c.active, countdown <= 1)
+        lit = out_c.geom_rgba[world.pack_geom[countdown <= 1]]
+        np.testing.assert_array_equal(lit, world.pack_rgba[countdown <= 1].astype(np.float32))
+        back += int((countdown == 1).sum())
+        still += int((countdown > 1).sum())
+    assert back >= 50 and still >= 50, (back, still)
+
+
+def test_teeth_on_electrodes_refuses_inactive_packs_on_either_backend(
+    scene_world: World, scenes: Scenes
+) -> None:
+    """The contact scan with random packs inactive: the same pairs from both, none onto an
+    inactive pack, and contacts refused for that reason alone."""
+    sw = SurvivalWorld(scene_world, rng=np.random.default_rng(1))
+    n, n_packs = sw.n_robots, sw.n_packs
+    rng = np.random.default_rng(15)
+    free = survival_kernels.SurvivalState(
+        np.full(n, 50.0), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=bool),
+        np.ones(n, dtype=bool), np.zeros(n, dtype=np.int64), np.zeros((n, 2)),
+    )  # fmt: skip
+    flags = survival_kernels.StepFlags(*(np.zeros(n, dtype=bool) for _ in range(3)))
+    kept = refused = 0
+    for _ in scenes(40):
+        packs = scene_world.pack_positions()
+        for i in range(min(n, n_packs)):  # teeth 17 cm from a pack's centre: touching
+            yaw = rng.uniform(-math.pi, math.pi)
+            x, y = packs[i] - 0.17 * np.array([math.cos(yaw), math.sin(yaw)])
+            scene_world.set_robot_pose(i, x, y, yaw)
+        mujoco.mj_forward(scene_world.model, scene_world.data)
+        geom = scene_world.data.contact.geom
+        ncon = len(geom)
+        active = rng.random(n_packs) < 0.5
+        tables = sw.docking.tables._replace(pack_active=active)
+        everyone = sw.docking.tables._replace(pack_active=np.ones(n_packs, dtype=bool))
+        counts = []
+        for kernel in (
+            survival_kernels.teeth_on_electrodes,
+            survival_kernels.teeth_on_electrodes_reference,
+        ):
+            pairs = []
+            for table in (tables, everyone):
+                contacts = survival_kernels.ContactScan(
+                    geom.astype(np.int32).reshape(-1, 2), np.array([ncon], dtype=np.int64),
+                    np.full((max(ncon, 1), 2), -5, dtype=np.int64),
+                )  # fmt: skip
+                k = kernel(contacts, table, free, flags)
+                pairs.append(contacts.pairs[:k].copy())
+            counts.append(pairs)
+        (masked_c, all_c), (masked_r, all_r) = counts
+        np.testing.assert_array_equal(masked_c, masked_r)
+        np.testing.assert_array_equal(all_c, all_r)
+        assert active[masked_c[:, 1]].all()
+        np.testing.assert_array_equal(masked_c, all_c[active[all_c[:, 1]]])
+        kept += len(masked_c)
+        refused += len(all_c) - len(masked_c)
+    if n_packs:
+        assert kept >= 5 and refused >= 5, (kept, refused)
+    else:
+        assert kept == refused == 0
+
+
+def test_geometric_vision_hides_inactive_packs_on_either_backend(
+    scene_world: World, scenes: Scenes
+) -> None:
+    """Nearest targets, the full pass and blob merging with random packs inactive: the same
+    answers from both backends, and no inactive pack among the visible targets."""
+    n_packs = scene_world.config.n_packs
+    compiled = GeometricVision(scene_world, backend="numba")
+    reference = GeometricVision(scene_world, backend="numpy")
+    first = len(compiled.target_cls) - n_packs  # the packs are the last targets
+    rng = np.random.default_rng(16)
+    dark = seen = others = 0
+    for _ in scenes(40):
+        for j in range(n_packs):
+            scene_world.set_pack_active(j, bool(rng.random() < 0.5))
+        active = scene_world.pack_active.copy()
+        out_c, out_r = compiled.nearest_targets(), reference.nearest_targets()
+        np.testing.assert_array_equal(out_c.visible, out_r.visible)
+        np.testing.assert_allclose(out_c.distance, out_r.distance, rtol=0, atol=1e-12)
+        mc, mr = compiled.measure_targets(), reference.measure_targets()
+        np.testing.assert_array_equal(mc.visible, mr.visible)
+        np.testing.assert_array_equal(compiled.front.candidate, reference.front.candidate)
+        np.testing.assert_array_equal(compiled.merging.merged, reference.merging.merged)
+        np.testing.assert_allclose(mc.blob_spread, mr.blob_spread, rtol=0, atol=1e-12)
+        packs = mc.visible[:, first:]
+        assert not packs[:, ~active].any()
+        assert not compiled.front.candidate[:, first:][:, ~active].any()
+        # The nearest pack seen is the nearest visible active one.
+        for i in range(scene_world.config.n_robots):
+            if packs[i].any():
+                nearest = mc.distance[i, first:][packs[i]].min()
+                assert out_c.visible[i, BATTERY] and out_c.distance[i, BATTERY] == nearest
+        dark += int((~active).sum())
+        seen += int(packs.sum())
+        others += int(mc.visible[:, :first].sum())
+    for j in range(n_packs):
+        scene_world.set_pack_active(j, True)
+    if n_packs:
+        assert seen >= 10 and dark >= 10, (seen, dark)
+    else:  # no packs: the other targets are seen as ever
+        assert seen == dark == 0 and others > 0
+
+
+def test_compiled_mechanics_with_pack_reactivation_equal_numpy() -> None:
+    """Whole survival worlds whose packs go inactive after each docking, on either backend:
+    the same trajectory, events, countdowns and colours; packs went dark and came back."""
+    worlds = []
+    for backend in ("numba", "numpy"):
+        world = World(WorldConfig(pack_reactivation_steps=8), np.random.default_rng(3))
+        worlds.append(
+            SurvivalWorld(world, SURVIVAL_CONFIG, np.random.default_rng(3), backend=backend)
+        )
+    compiled, reference = worlds
+    rng = np.random.default_rng(6)
+    n = compiled.n_robots
+    mode = np.full(n, SEEK_PACK)
+    docks = reactivated = 0
+    for step in range(1200):
+        if step % 60 == 0:
+            mode = rng.choice([SEEK_PACK, SEEK_ROBOT, WANDER], size=n, p=[0.6, 0.3, 0.1])
+        commands = _scripted_commands(compiled, mode, rng)
+        before = compiled.world.pack_active.copy()
+        a = compiled.step(*commands)
+        reference.step(*commands)
+        _assert_same_survival(compiled, reference)
+        np.testing.assert_array_equal(compiled.pack_countdown, reference.pack_countdown)
+        np.testing.assert_array_equal(compiled.world.pack_active, reference.world.pack_active)
+        assert compiled.docking.inactive_packs == reference.docking.inactive_packs
+        assert compiled.docking.inactive_packs == int((compiled.pack_countdown > 0).sum())
+        for i in a.deaths():
+            for sw in (compiled, reference):
+                sw.set_energy(i, sw.config.initial_energy)
+        docks += len(a.dockings())
+        reactivated += int((compiled.world.pack_active & ~before).sum())
+    assert docks >= 10 and reactivated >= 10, (docks, reactivated)
+
+
+def test_a_run_with_pack_reactivation_is_the_same_on_either_backend() -> None:
+    """The evolution runner's fused sense-decide-act reads the packs' state: with packs that
+    go inactive after a docking, both backends give the same trajectory and events."""
+    from evolution.runner import EvolutionRunner, RunConfig
+
+    runs = []
+    for backend in ("numba", "numpy"):
+        config = RunConfig(method="ee", world=WorldConfig(pack_reactivation_steps=30))
+        runner = EvolutionRunner(config, 3, backend=backend)
+        for _ in range(600):
+            runner.step()
+        runs.append(runner)
+    a, b = runs
+    np.testing.assert_array_equal(a.world.data.qpos, b.world.data.qpos)
+    np.testing.assert_array_equal(a.world.pack_active, b.world.pack_active)
+    events = a.events.to_frame()
+    assert events.equals(b.events.to_frame())
+    assert (events["kind"] == "dock").sum() >= 3

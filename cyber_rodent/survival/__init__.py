@@ -19,7 +19,9 @@ mechanics of the simulated world, on top of :class:`cyber_rodent.world.World`:
   heading (measured in ``tests/test_survival_physics.py``) and is refused until the robot,
   still pushing, pivots its teeth onto the pack. While recharging the robot is held in place
   by a weld of its chassis to the world, an equality constraint of the world model
-  (``world.dock_hold_name``); its wheels are stopped. Packs are static and never used up.
+  (``world.dock_hold_name``); its wheels are stopped. Packs are static and never used up
+  (``WorldConfig.pack_reactivation_steps`` makes a docked-onto pack inactive, dark and
+  undockable, for a while: a later study's variant, docs/design.md §9.26).
 * **Recharging** (:mod:`~cyber_rodent.survival.energy`). Every step the caller's recharge
   decision (the evolved recharge controller) says continue or stop. Recharging ends on "stop",
   after ``max_recharge_steps`` (40) consecutive steps, or at full energy. Then the weld is

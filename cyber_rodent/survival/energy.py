@@ -11,6 +11,9 @@ or touches MuJoCo (docs/design.md §5):
   at the capture pose (:meth:`Docking.dock`) and off at the release (:meth:`Docking.release`).
 * **The reflex.** A release after recharging starts a rotation of random direction and length,
   drawn from the world's generator, which turns the teeth away from the pack.
+* **Pack reactivation** (``WorldConfig.pack_reactivation_steps`` N > 0). A docking makes its
+  pack inactive (dark, refusing new dockings) for the rest of the step and the N steps after
+  it; :meth:`Docking.count_down` brings it back (docs/design.md §9.26).
 """
 
 from __future__ import annotations
@@ -24,7 +27,13 @@ from cyber_rodent.backend import Backend, bind, pick
 from cyber_rodent.survival import kernels
 from cyber_rodent.survival.config import SurvivalConfig
 from cyber_rodent.survival.events import StepEvents
-from cyber_rodent.survival.kernels import ContactScan, DockingTables, StepFlags, SurvivalState
+from cyber_rodent.survival.kernels import (
+    ContactScan,
+    DockingTables,
+    PackAvailability,
+    StepFlags,
+    SurvivalState,
+)
 from cyber_rodent.world import World, dock_hold_name
 
 # Weld equality data layout (MuJoCo 3.x ``eq_data`` row): anchor (3), relative pose of body2 in
@@ -73,6 +82,11 @@ class Docking:
     Attributes:
         tables: which geoms are teeth and electrodes, and whose.
         pack_xy: (n_packs, 2) pack positions, read at reset and by :meth:`refresh_pack_positions`.
+        reactivation_steps: ``WorldConfig.pack_reactivation_steps`` (0: packs never go
+            inactive).
+        packs: the packs' reactivation countdowns and colours (:class:`PackAvailability`).
+        inactive_packs: how many packs are inactive now (:meth:`count_down` runs only while
+            some are).
     """
 
     def __init__(
@@ -110,8 +124,21 @@ class Docking:
         dock_code = np.zeros(m.ngeom, dtype=np.int8)
         dock_code[world.teeth_geom] = 1
         dock_code[world.electrode_geom] = 2
-        self.tables = DockingTables(dock_code, teeth_owner, electrode_owner)
+        self.tables = DockingTables(dock_code, teeth_owner, electrode_owner, world.pack_active)
         self.pack_xy = np.zeros((n_packs, 2))
+        self.reactivation_steps = int(world.config.pack_reactivation_steps)
+        self.packs = PackAvailability(
+            countdown=np.zeros(n_packs, dtype=np.int64),
+            active=world.pack_active,
+            geom_rgba=m.geom_rgba,
+            pack_geom=np.asarray(world.pack_geom, dtype=np.int64),
+            pack_rgba=world.pack_rgba,
+        )
+        self.inactive_packs = 0
+        self._count_down = bind(
+            pick(backend, kernels.count_down_packs, kernels.count_down_packs_reference),
+            self.packs,
+        )
         self._cos_dock = math.cos(math.radians(config.dock_bearing_tolerance_deg))
         self._scan_kernel = pick(
             backend, kernels.teeth_on_electrodes, kernels.teeth_on_electrodes_reference
@@ -130,6 +157,25 @@ class Docking:
         """Re-read pack positions after the world placed or moved packs."""
         self.pack_xy[:] = self.world.pack_positions()
 
+    def reset_packs(self) -> None:
+        """Every pack active (``World.reset`` restored their colours): no countdown runs."""
+        self.packs.countdown[:] = 0
+        self.inactive_packs = 0
+
+    def load_pack_countdown(self, countdown: np.ndarray) -> None:
+        """Take the packs' countdowns of a saved state: packs counting down are inactive
+        (dark), the others active in their colour."""
+        np.copyto(self.packs.countdown, countdown)
+        active = self.packs.countdown == 0
+        for j in np.flatnonzero(active != self.world.pack_active).tolist():
+            self.world.set_pack_active(j, bool(active[j]))
+        self.inactive_packs = int(np.count_nonzero(~active))
+
+    def count_down(self) -> None:
+        """End of a step, after its dockings: the inactive packs' countdowns (see
+        :class:`PackAvailability`); those that run out are active again."""
+        self.inactive_packs = self._count_down()
+
     def detect(self) -> None:
         """Dock every eligible robot whose teeth touch an electrode with the pack ahead."""
         geom = self.world.data.contact.geom
@@ -142,9 +188,10 @@ class Docking:
         contacts.ncon[0] = n
         k = self._scan()
         if k:
-            docked = self.state.docked
+            docked, active = self.state.docked, self.world.pack_active
             for i, j in contacts.pairs[:k].tolist():
-                if not docked[i] and self.pack_ahead(i, j):
+                # A docking earlier in this loop may have made pack j inactive.
+                if not docked[i] and active[j] and self.pack_ahead(i, j):
                     self.dock(i, j)
 
     def pack_ahead(self, i: int, j: int) -> bool:
@@ -159,7 +206,9 @@ class Docking:
         return bool(dist > 0.0 and forward >= self._cos_dock * dist)
 
     def dock(self, i: int, j: int) -> None:
-        """Robot ``i`` captures pack ``j``: weld it where it stands, start recharging."""
+        """Robot ``i`` captures pack ``j``: weld it where it stands, start recharging; with a
+        reactivation time the pack goes inactive for the rest of this step and the next
+        ``reactivation_steps`` steps."""
         m, d = self.world.model, self.world.data
         b = self.world.chassis_body[i]
         e = self.hold_eq[i]
@@ -176,6 +225,11 @@ class Docking:
         self.dock_pack[i] = j
         state.recharge_steps[i] = 0
         self.events.record_dock(i, j)
+        if self.reactivation_steps:
+            if not self.packs.countdown[j]:
+                self.inactive_packs += 1
+            self.packs.countdown[j] = self.reactivation_steps + 1
+            self.world.set_pack_active(j, False)
 
     def release(self, i: int, reflex_rng: np.random.Generator | None) -> None:
         """Undock robot ``i``; with a generator, start its rotation reflex (drawn from it)."""

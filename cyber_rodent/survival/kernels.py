@@ -13,8 +13,12 @@ construction (``backend``) and binds it to its named buffers once:
   undocking draws the reflex from the world's generator, which stays in Python), the energy
   decay of everyone else and deaths;
 * :func:`teeth_on_electrodes`: the contact scan for captures; it returns only the (robot,
-  pack) pairs of robots that may dock (alive, not docked, not in their rotation reflex); the
-  alignment test and the docking itself stay in Python (rare);
+  pack) pairs of robots that may dock (alive, not docked, not in their rotation reflex) onto
+  packs that take a docking (active, ``WorldConfig.pack_reactivation_steps``); the alignment
+  test and the docking itself stay in Python (rare);
+* :func:`count_down_packs`: the end of a step for the packs that a docking made inactive:
+  their countdowns, and their colour and dockability back when a countdown runs out (run only
+  while some pack is inactive);
 * :func:`mate`: IR mating: which signalling pairs hold the condition (ports facing each other
   within the angle, within the distance), their consecutive-step streaks, and the exchanges
   (nearest pairs first, one partner per robot per step).
@@ -101,11 +105,28 @@ class SurvivalRules(NamedTuple):
 
 
 class DockingTables(NamedTuple):
-    """Which geoms are teeth and electrodes, and whose."""
+    """Which geoms are teeth and electrodes, and whose; which packs take a docking now."""
 
     dock_code: npt.NDArray[np.int8]  #: (ngeom,) 1 teeth, 2 electrode, 0 other
     teeth_owner: Ints  #: (ngeom,) robot of a teeth geom, else -1
     electrode_owner: Ints  #: (ngeom,) pack of an electrode geom, else -1
+    pack_active: Flags  #: (n_packs,) the pack takes new dockings (``World.pack_active``)
+
+
+class PackAvailability(NamedTuple):
+    """The packs' reactivation countdowns and what shows an inactive pack (the world's arrays).
+
+    A docking onto pack j during control step t sets ``countdown[j]`` to N + 1 (N:
+    ``WorldConfig.pack_reactivation_steps``) and darkens the pack; the end of every step,
+    after its dockings, subtracts 1; at 0 the pack is active again, so it is inactive during
+    the rest of step t and steps t+1 .. t+N.
+    """
+
+    countdown: Ints  #: (n_packs,) steps the pack stays inactive, this one included (0: active)
+    active: Flags  #: (n_packs,) the pack is shown and takes dockings (``World.pack_active``)
+    geom_rgba: npt.NDArray[np.float32]  #: (ngeom, 4) the model's geom colours
+    pack_geom: Ints  #: (n_packs,) each pack's coloured body geom
+    pack_rgba: Floats  #: (n_packs, 4) each pack's own colour (``World.pack_rgba``)
 
 
 class ContactScan(NamedTuple):
@@ -331,7 +352,7 @@ def teeth_on_electrodes(
 
     Teeth geoms have code 1 and electrodes code 2, so a contact pair ORs to 3 exactly when it
     is teeth on electrode. Eligible: the robot is alive, not docked, and neither started the
-    step in its reflex nor has reflex steps left.
+    step in its reflex nor has reflex steps left, and the pack is active.
 
     Returns:
         k, the number of pairs written.
@@ -352,7 +373,7 @@ def teeth_on_electrodes(
             i = tables.teeth_owner[g2]
             j = tables.electrode_owner[g1]
         free = state.alive[i] and not state.docked[i] and not flags.in_reflex[i]
-        if free and state.reflex_steps_left[i] == 0:
+        if free and state.reflex_steps_left[i] == 0 and tables.pack_active[j]:
             pairs[k, 0] = i
             pairs[k, 1] = j
             k += 1
@@ -375,10 +396,48 @@ def teeth_on_electrodes_reference(
     pack = np.where(electrode_second, tables.electrode_owner[g2], tables.electrode_owner[g1])
     free = state.alive[robot] & ~state.docked[robot] & ~flags.in_reflex[robot]
     free &= state.reflex_steps_left[robot] == 0
+    free &= tables.pack_active[pack]
     k = int(np.count_nonzero(free))
     contacts.pairs[:k, 0] = robot[free]
     contacts.pairs[:k, 1] = pack[free]
     return k
+
+
+# --- count_down_packs: inactive packs come back ---------------------------------------------
+
+
+@jit
+def count_down_packs(packs: PackAvailability) -> int:
+    """End of a control step, after its dockings: every inactive pack's countdown minus 1; a
+    pack whose countdown reaches 0 is active again, in its own colour.
+
+    Returns:
+        The number of packs still inactive.
+    """
+    inactive = 0
+    for j in range(packs.countdown.shape[0]):
+        if packs.countdown[j] <= 0:
+            continue
+        packs.countdown[j] -= 1
+        if packs.countdown[j] > 0:
+            inactive += 1
+            continue
+        packs.active[j] = True
+        g = packs.pack_geom[j]
+        for c in range(4):
+            packs.geom_rgba[g, c] = packs.pack_rgba[j, c]
+    return inactive
+
+
+def count_down_packs_reference(packs: PackAvailability) -> int:
+    """:func:`count_down_packs` in numpy."""
+    counting = packs.countdown > 0
+    np.subtract(packs.countdown, counting, out=packs.countdown)
+    back = counting & (packs.countdown == 0)
+    if back.any():
+        packs.active[back] = True
+        packs.geom_rgba[packs.pack_geom[back]] = packs.pack_rgba[back]
+    return int(np.count_nonzero(packs.countdown))
 
 
 # --- IR mating ---------------------------------------------------------------------------------
@@ -540,12 +599,15 @@ __all__ = [
     "ContactScan",
     "DockingTables",
     "EnergyOutcome",
+    "PackAvailability",
     "StepCommands",
     "StepFlags",
     "SurvivalRules",
     "SurvivalState",
     "begin",
     "begin_reference",
+    "count_down_packs",
+    "count_down_packs_reference",
     "end",
     "end_reference",
     "teeth_on_electrodes",

@@ -10,8 +10,9 @@ reused :class:`~cyber_rodent.survival.events.StepEvents`. One control step is
 2. :meth:`SurvivalWorld.advance_physics`: ``n_substeps`` MuJoCo steps;
 3. :meth:`SurvivalWorld.end_step`: :func:`~cyber_rodent.survival.kernels.end` (energy,
    recharge stopping rules, deaths), the releases it asks for
-   (:class:`~cyber_rodent.survival.energy.Docking`), captures, and mating
-   (:class:`~cyber_rodent.survival.mating.Mating`).
+   (:class:`~cyber_rodent.survival.energy.Docking`), captures, the inactive packs'
+   countdowns (:func:`~cyber_rodent.survival.kernels.count_down_packs`, only while a pack is
+   inactive) and mating (:class:`~cyber_rodent.survival.mating.Mating`).
 
 The dm-control tasks (:mod:`cyber_rodent.tasks`) drive the same object through
 :meth:`SurvivalWorld.begin_step` and :meth:`SurvivalWorld.end_step`, with dm-control stepping the
@@ -100,6 +101,8 @@ class SurvivalWorld:
         reflex_steps_left: (n,) int, steps of the post-recharge rotation reflex still to run.
         reflex_wheels: (n, 2) float, wheel speeds of the running reflex, m/s.
         alive: (n,) bool, energy above 0.
+        pack_countdown: (n_packs,) int, control steps each pack stays inactive, the step in
+            progress included (0: active; ``WorldConfig.pack_reactivation_steps``).
         rng: the generator of the reflexes (and of the placement at :meth:`reset`).
         step_count: control steps since the last reset.
         events: the :class:`StepEvents` of the last step (reused, see there).
@@ -167,6 +170,7 @@ class SurvivalWorld:
         self.docking = Docking(
             world, cfg, self._state, self.dock_pack, self._flags, self.events, self.backend
         )
+        self.pack_countdown = self.docking.packs.countdown
         self.mating = Mating(
             world, cfg, self._flags.mate_signal, self.alive, self.docked,
             self.events.mate_partner, self.backend,
@@ -198,13 +202,15 @@ class SurvivalWorld:
 
     # --- set-up (off the hot path) -----------------------------------------------------------
     def reset(self, rng: np.random.Generator) -> None:
-        """New random placement (``World.reset``) and newborn energy for every robot.
+        """New random placement (``World.reset``), every pack active, and newborn energy for
+        every robot.
 
         ``rng`` is kept for the reflexes, so a run is a pure function of its generator.
         """
         self.rng = rng
         self.world.reset(rng)  # mj_resetData also switches every docking weld off
         self.docking.refresh_pack_positions()
+        self.docking.reset_packs()
         self.energy[:] = self.config.initial_energy
         self.recharge_steps[:] = 0
         self.docked[:] = False
@@ -392,6 +398,8 @@ class SurvivalWorld:
             self.docking.detect()
             if events.any and not self._capture_on_recharge:
                 np.copyto(events.captured, events.docked)  # "docking": the docking is the capture
+        if self.docking.inactive_packs:  # after the dockings, which may have started some
+            self.docking.count_down()
         self.mating.after_step(events)
         if self._reflex_after_mating and events.any:
             for i in np.flatnonzero(events.mate_partner >= 0).tolist():
@@ -455,9 +463,9 @@ class SurvivalWorld:
 
         Numpy arrays (copies), Python scalars and nested dicts of those: the per-robot arrays,
         the step count, the reflex generator's state, the mating streaks, the last step's
-        events, the flags of a step in progress, the pack positions the captures test against
-        and the world's LED state. MuJoCo's model and data are not included: the checkpoint
-        saves them separately (docs/design.md §10).
+        events, the flags of a step in progress, the pack positions the captures test against,
+        the packs' reactivation countdowns and the world's LED state. MuJoCo's model and data
+        are not included: the checkpoint saves them separately (docs/design.md §10).
         """
         events = self.events
         return {
@@ -473,6 +481,7 @@ class SurvivalWorld:
             "mid_step": self._mid_step,
             **{name: getattr(self._flags, name).copy() for name in StepFlags._fields},
             "pack_xy": self.docking.pack_xy.copy(),
+            "pack_countdown": self.pack_countdown.copy(),
             "led_on": self.world.led_on.copy(),
         }
 
@@ -481,15 +490,26 @@ class SurvivalWorld:
 
         Nothing is written unless all of ``state`` fits this world. A state written before
         ``StepEvents.captured`` existed, when every docking was a capture, gets ``captured``
-        equal to its ``docked``.
+        equal to its ``docked``; one written before packs could go inactive
+        (``pack_countdown``) has every pack active. A pack counting down is made inactive
+        (dark), the others active.
 
         Raises:
             ValueError: a key is missing or unknown, an array's shape or dtype differs, a
-                scalar has the wrong type, or the generator state is of another generator.
+                scalar has the wrong type, a pack's countdown is longer than this world's
+                reactivation time, or the generator state is of another generator.
         """
         template = self.state()
-        state = _with_captured(state)
+        state = _with_pack_countdown(_with_captured(state), self.n_packs)
         _check_state(state, template, "")
+        countdown, steps = state["pack_countdown"], self.docking.reactivation_steps
+        longest = steps + 1 if steps else 0  # a docking sets N + 1; no countdown without N
+        if self.n_packs and not (0 <= countdown.min() and countdown.max() <= longest):
+            raise ValueError(
+                f"survival state['pack_countdown'] must be in [0, {longest}] (this world's "
+                f"pack_reactivation_steps is {steps}), got values from {countdown.min()} to "
+                f"{countdown.max()}"
+            )
         probe = type(self.rng.bit_generator)(0)
         try:
             probe.state = copy.deepcopy(state["rng"])
@@ -504,6 +524,7 @@ class SurvivalWorld:
         }
         for name, target in targets.items():
             np.copyto(target, state[name])
+        self.docking.load_pack_countdown(state["pack_countdown"])
         for name in StepEvents.ARRAYS:
             np.copyto(getattr(self.events, name), state["events"][name])
         self.events.any = bool(state["events"]["any"])
@@ -522,6 +543,13 @@ def _with_captured(state: Any) -> Any:
     if not isinstance(docked, np.ndarray):
         return state  # _check_state names what is wrong
     return {**state, "events": {**events, "captured": docked.copy()}}
+
+
+def _with_pack_countdown(state: Any, n_packs: int) -> Any:
+    """``state`` with ``pack_countdown`` (every pack active) if it predates it."""
+    if not isinstance(state, Mapping) or "pack_countdown" in state:
+        return state
+    return {**state, "pack_countdown": np.zeros(n_packs, dtype=np.int64)}
 
 
 def _check_state(state: Any, template: Mapping[str, Any], where: str) -> None:

@@ -17,7 +17,8 @@ measures how well they agree):
   times the visible share of its samples) reaches the class's ``min_blob_area``, which gives
   the camera's real range limit;
 * a face plate is seen from the front, and edge-on from the side where it stands out of the
-  chassis; a robot never sees its own LED or face;
+  chassis; a robot never sees its own LED or face; a dark LED and an inactive pack
+  (``World.pack_active``) are no target, but still hide what is behind them;
 * targets of one colour whose pixels touch merge into one blob, reported at the nearest of them
   (colour segmentation cannot separate them; ``docs/design.md`` §6 gives the rule).
 
@@ -88,8 +89,8 @@ class TargetMeasurements:
         visible_share: fraction of the target's occlusion samples that the camera sees.
         width_px, height_px: projected size of the whole target in pixels.
         candidate: could be seen at all (in range, large enough if fully visible, not the
-            robot's own, a lit LED, a face plate facing or beside the camera), before
-            occlusion.
+            robot's own, a lit LED, an active pack, a face plate facing or beside the camera),
+            before occlusion.
         blob_spread: rad, how far the blob of a visible target that swallowed touching
             targets of its colour reaches beyond the target's own angular half width (0 for
             every other target): the rendered blob's bearing lies anywhere within it.
@@ -270,7 +271,7 @@ class GeometricVision:
             d.site_xpos, d.site_xmat, d.geom_xpos, d.geom_xmat, m._address, d._address
         )
         self.scene = kernels.GeometricScene(
-            poses, self.targets, self.camera, world.led_on, self.front
+            poses, self.targets, self.camera, world.led_on, world.pack_active, self.front
         )
         self.nearest = kernels.NearestTargets(
             bearing=np.zeros((n, 3)),
@@ -283,7 +284,7 @@ class GeometricVision:
         )  # fmt: skip
         self._front = bind(
             pick(self.backend, kernels.front, kernels.front_reference),
-            self.targets, self.camera, world.led_on, self.front, True,
+            self.targets, self.camera, world.led_on, world.pack_active, self.front, True,
         )  # fmt: skip
         self._nearest = bind(
             pick(self.backend, kernels.nearest, kernels.nearest_reference), self.scene, self.nearest
@@ -295,6 +296,7 @@ class GeometricVision:
             merged=np.zeros(shape_nt, dtype=np.bool_),
             spread=np.zeros(shape_nt),
             group=np.zeros(n_targets, dtype=np.int64),
+            pack_active=world.pack_active,
         )
         self._merge = bind(
             pick(self.backend, kernels.merge, kernels.merge_reference),
@@ -332,7 +334,7 @@ class GeometricVision:
         Targets are ordered: the LED of each robot, the face of each robot, each pack
         (``target_cls``, ``target_owner`` give class and owning robot). Rays are cast only at
         targets that could be seen at all (another robot's lit LED, a face turned towards the
-        camera, anything in range and large enough if fully visible).
+        camera, an active pack, anything in range and large enough if fully visible).
         """
         self._gather()
         self._front()

@@ -7,8 +7,8 @@ it, each written twice with the same signature (``docs/design.md`` §3):
 * :func:`gather` / :func:`gather_reference`: copy the cameras' and targets' poses out of
   MuJoCo's data;
 * :func:`front` / :func:`front_reference`: every target in every camera's frame, its projected
-  size in pixels, whether it could be seen at all (range, size, own body, lit LED, plate
-  facing), and the occlusion sample rays with their field-of-view test;
+  size in pixels, whether it could be seen at all (range, size, own body, lit LED, active
+  pack, plate facing), and the occlusion sample rays with their field-of-view test;
 * :func:`nearest` / :func:`nearest_reference`: gather, front, then each class's candidates
   nearest first, casting MuJoCo's ``mj_ray`` at a candidate's samples only until its visibility
   is certain (a target is visible iff ``full_area * hits / samples >= min_area``). The compiled
@@ -176,15 +176,20 @@ class MergeBuffers(NamedTuple):
     merged: Bools  #: (n, T) output: swallowed by a nearer target's blob
     spread: Floats  #: (n, T) output: rad, how far a survivor's blob reaches past its half width
     group: Ints  #: (T,) scratch: union-find parents
+    #: (n_packs,) each pack's state (``World.pack_active``; the packs are the last targets): an
+    #: inactive pack is dark, so it hides a pack behind it as any other body does
+    pack_active: Bools
 
 
 class GeometricScene(NamedTuple):
-    """Everything :func:`nearest` reads: the poses, the constants, the LEDs, the scratch."""
+    """Everything :func:`nearest` reads: the poses, the constants, the LEDs and packs, the
+    scratch."""
 
     poses: MujocoPoses
     targets: TargetTable
     camera: CameraModel
     led_on: Bools  #: (n,) each robot's LED state (a dark LED is not a green target)
+    pack_active: Bools  #: (n_packs,) each pack's state (an inactive pack is not a blue target)
     front: FrontBuffers
 
 
@@ -441,8 +446,9 @@ def _sample(targets: TargetTable, camera: CameraModel, f: FrontBuffers, i: int, 
 
 @jit
 def front(
-    targets: TargetTable, camera: CameraModel, led_on: Bools, f: FrontBuffers, every_target: bool
-) -> None:
+    targets: TargetTable, camera: CameraModel, led_on: Bools, pack_active: Bools,
+    f: FrontBuffers, every_target: bool,
+) -> None:  # fmt: skip
     """Fill ``f``'s per-(robot, target) and per-(robot, sample) buffers from its poses.
 
     With ``every_target`` False, only what costs nothing is filled, for :func:`nearest` to
@@ -450,10 +456,14 @@ def front(
     ``bearing``, ``distance``) and in ``candidate`` whether it could be seen *if it were large
     enough* (in range, not the robot's own, a lit LED, a plate whose front or side the camera
     faces).
+
+    A dark LED (``led_on``) and an inactive pack (``pack_active``, the last targets) are no
+    target of their colour; they still hide what is behind them (the rays hit their geoms).
     """
     n = f.cam.shape[0]
     n_t = f.centre.shape[0]
     n_s = targets.sample_target.shape[0]
+    first_pack = n_t - pack_active.shape[0]
     for i in range(n):
         r = f.rot[i]
         for t in range(n_t):
@@ -475,6 +485,8 @@ def front(
             ok = dist <= camera.max_range and not targets.own[i, t]
             if t < n and not led_on[t]:
                 ok = False  # a dark LED is not a green target
+            if t >= first_pack and not pack_active[t - first_pack]:
+                ok = False  # an inactive pack is dark: not a blue target
             if ok and targets.plate[t]:  # a plate shows its front, or its side edge-on
                 g = f.gmat[t]  # its x axis is the plate's normal, its y axis its width
                 x_cam = -(d0 * g[0] + d1 * g[3] + d2 * g[6])
@@ -499,8 +511,9 @@ def _view_offset(camera: CameraModel, bearing: Floats) -> tuple[Ints, Floats]:
 
 
 def front_reference(
-    targets: TargetTable, camera: CameraModel, led_on: Bools, f: FrontBuffers, every_target: bool
-) -> None:
+    targets: TargetTable, camera: CameraModel, led_on: Bools, pack_active: Bools,
+    f: FrontBuffers, every_target: bool,
+) -> None:  # fmt: skip
     """:func:`front` in vectorised numpy (it fills every target whatever ``every_target``)."""
     n = f.cam.shape[0]
     rot = f.rot.reshape(n, 3, 3)
@@ -578,6 +591,7 @@ def front_reference(
     candidate &= distance <= camera.max_range
     candidate &= ~targets.own
     candidate[:, :n] &= led_on[None, :]  # a dark LED is not a green target
+    candidate[:, candidate.shape[1] - len(pack_active) :] &= pack_active[None, :]  # dark packs
     # Plates (faces) show their front to a camera ahead of them, their side edge-on to one
     # beside them.
     candidate[:, plate] &= (x_cam > front_face)[:, plate] | edge_on[:, plate]
@@ -613,7 +627,7 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
     poses, targets, f = scene.poses, scene.targets, scene.front
     camera = scene.camera
     gather(poses, targets, f)
-    front(targets, camera, scene.led_on, f, False)
+    front(targets, camera, scene.led_on, scene.pack_active, f, False)
     n = f.cam.shape[0]
     n_s = f.rays.shape[1]
     # mj_ray reads 3 doubles at each point/direction address. Addresses are signed 64-bit:
@@ -681,7 +695,7 @@ def nearest_reference(scene: GeometricScene, out: NearestTargets) -> None:
     """:func:`nearest` in numpy and Python, with the same lazy ray order."""
     poses, targets, f = scene.poses, scene.targets, scene.front
     gather_reference(poses, targets, f)
-    front_reference(targets, scene.camera, scene.led_on, f, False)
+    front_reference(targets, scene.camera, scene.led_on, scene.pack_active, f, False)
     n, n_t = f.candidate.shape
     n_s = f.rays.shape[1]
     masked = np.full((n, n_t + 1), np.inf)  # one padding column, never a candidate
@@ -797,14 +811,16 @@ def _hidden_by_another(
     b: int,
 ) -> bool:  # fmt: skip
     """Whether something other than targets of b's colour, b's own body or a's body hides one
-    of b's samples from robot i."""
+    of b's samples from robot i (an inactive pack is not of any target's colour)."""
+    first_pack = m.seen.shape[1] - m.pack_active.shape[0]
     for s in range(targets.sample_start[b], targets.sample_end[b]):
         g = m.hit_geom[i, s]
         if not f.sample_ok[i, s] or g < 0:
             continue
         hit = rules.target_of_geom[g]
         if hit >= 0 and rules.target_cls[hit] == rules.target_cls[b]:
-            continue
+            if hit < first_pack or m.pack_active[hit - first_pack]:
+                continue
         body = rules.geom_body[g]
         if body != rules.target_body[b] and body != rules.target_body[a]:
             return True
@@ -832,8 +848,8 @@ def merge(
       shows its upper band as a blob of its own;
     * b is wholly in view, or hidden in part only by targets of its colour, by its own body (a
       pack's ring) or by a's body (the post an LED ring surrounds): if something else hides it
-      (a third robot's chassis between two faces), that occluder may stand between their
-      pixels, and they stay apart.
+      (a third robot's chassis between two faces, an inactive pack, which is dark), that
+      occluder may stand between their pixels, and they stay apart.
 
     Groups are joined transitively, as pixels are; the survivor of a group is its nearest
     member (ties: the lower index).
@@ -968,6 +984,10 @@ def merge_reference(
     geom = np.maximum(geom, 0)
     hit = rules.target_of_geom[geom]
     same_colour = (hit >= 0) & (cls[np.maximum(hit, 0)] == cls[b][:, None])
+    first_pack = seen.shape[1] - len(m.pack_active)
+    dark = hit >= first_pack  # an inactive pack hides like any other body
+    dark[dark] = ~m.pack_active[hit[dark] - first_pack]
+    same_colour &= ~dark
     body = rules.geom_body[geom]
     foreign = cast & ~same_colour
     foreign &= body != rules.target_body[b][:, None]

@@ -22,10 +22,11 @@ What a control step reads, and so what a checkpoint must restore (docs/design.md
   consistent with the restored state for any other reader.
 * **The model fields the run changes** (:data:`MODEL_FIELDS`): pack positions (``body_pos``,
   drawn at reset), the docking welds' relative poses (``eq_data``, set at each docking) and the
-  LED colours (``geom_rgba``).
+  LED and pack colours (``geom_rgba``; a pack is dark while inactive,
+  ``WorldConfig.pack_reactivation_steps``).
 * **The Python-side state** of the survival world (``SurvivalWorld.state()``: energy,
-  recharge counters, reflexes, mating streaks, LEDs, its generator) and of the vision provider
-  (``state()``: its noise generator).
+  recharge counters, reflexes, mating streaks, LEDs, the packs' reactivation countdowns, its
+  generator) and of the vision provider (``state()``: its noise generator).
 
 Restore order: model fields, ``mj_setState``, ``mj_forward``, the derived arrays, then the
 survival world and the vision provider. Everything is written into the world's existing
@@ -47,7 +48,8 @@ from evolution.checkpoint import restore_array
 
 #: The ``mj_getState`` / ``mj_setState`` selection: everything ``mj_step`` integrates from.
 INTEGRATION = mujoco.mjtState.mjSTATE_INTEGRATION
-#: Model fields that the world and the survival mechanics change during a run.
+#: Model fields that the world and the survival mechanics change during a run (``geom_rgba``:
+#: the LEDs, and the packs while inactive).
 MODEL_FIELDS = ("body_pos", "eq_data", "geom_rgba")
 #: ``MjData``'s fixed-size arrays (MuJoCo's ``MJDATA_POINTERS`` list) less the integration
 #: state and the plugin ids and pointers; a test checks it against the installed MuJoCo.
