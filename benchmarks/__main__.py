@@ -13,8 +13,10 @@ prints one table, also written as JSON (``--json``, default
   (:mod:`benchmarks.task_throughput`);
 * **full evolution loop**: control steps per second of a full EE and a full CE run
   (:class:`evolution.runner.EvolutionRunner`: sensing, controller, behaviours, survival
-  mechanics, scheduler) with geometric and with rendered vision, each with its ratio to the *same*
-  physics replayed raw (:func:`benchmarks.evolution_throughput.measure`);
+  mechanics, scheduler) with geometric and with rendered vision, and of EE in learning mode
+  (every agent learning its behaviours in its life, from the shipped values and from zero),
+  each with its ratio to the *same* physics replayed raw
+  (:func:`benchmarks.evolution_throughput.measure`);
 * **projections**: one 120-generation run on one core, and the paper's Fig. 6 experiment
   (20 seeds x EE and CE x 120 generations) with 1 and 2 worker processes;
 * **peak memory** of this process (``ru_maxrss``) and of the worker processes, plus the peak
@@ -65,12 +67,23 @@ def _peak_rss_mb(who: int = resource.RUSAGE_SELF) -> float:
     return resource.getrusage(who).ru_maxrss / 1024.0  # Linux: kilobytes
 
 
-def runner_rates(method: str, vision: str, steps: int, warmup: int, seed: int) -> dict:
-    """Full evolution loop vs the same physics replayed raw (evolution_throughput.measure)."""
+def runner_rates(
+    method: str, vision: str, steps: int, warmup: int, seed: int, learning_init: str | None = None
+) -> dict:
+    """Full evolution loop vs the same physics replayed raw (evolution_throughput.measure).
+
+    With ``learning_init`` the run is in learning mode (every agent learns its behaviours
+    during its life, from ``"zero"`` or ``"shipped"`` values).
+    """
+    from evolution.config import EvolutionConfig, LearningConfig
     from evolution.runner import EvolutionRunner, RunConfig
 
     policies, _ = evolution_throughput.choose_policies("auto")
-    runner = EvolutionRunner(RunConfig(method=method, vision=vision), seed, policies)
+    evolution = EvolutionConfig()
+    if learning_init is not None:
+        evolution = EvolutionConfig(learning=LearningConfig(enabled=True, init=learning_init))
+    config = RunConfig(method=method, vision=vision, evolution=evolution)
+    runner = EvolutionRunner(config, seed, policies)
     try:
         for _ in range(warmup):
             runner.step()
@@ -227,6 +240,10 @@ def main(argv: list[str] | None = None) -> dict:
             loops[f"{method} rendered"] = runner_rates(
                 method, "rendered", rendered_steps, min(warmup, 50), 0
             )
+    for init in ("shipped", "zero"):
+        loops[f"ee geometric, learning from {init}"] = runner_rates(
+            "ee", "geometric", loop_steps, warmup, 0, learning_init=init
+        )
     results["evolution_loop"] = loops
     steps_per_run = GENERATIONS * 25 * 400  # 25 agents x 400 steps per generation (no deaths)
     one_run_min = steps_per_run / loops["ee geometric"]["steps_per_s"] / 60
@@ -287,6 +304,11 @@ def print_table(r: dict, raw_ms: float) -> None:
         print(f"  {name:40s} {v['steps_per_s']:8.0f} {v['ms_per_step']:8.3f} "
               f"{v['ratio_to_raw_physics']:7.2f}")  # fmt: skip
     loops = r["evolution_loop"]
+    for init in ("shipped", "zero"):
+        name = f"ee geometric, learning from {init}"
+        if name in loops:
+            rel = loops[name]["ms_per_step"] / loops["ee geometric"]["ms_per_step"]
+            print(f"  learning mode ({init}) / fixed behaviours (EE): {rel:.2f}x per control step")
     if "ee rendered" in loops:
         rel = loops["ee rendered"]["ms_per_step"] / loops["ee geometric"]["ms_per_step"]
         print(f"  rendered / geometric (EE): {rel:.2f}x per control step")

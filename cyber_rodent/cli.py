@@ -216,6 +216,7 @@ def _cmd_evolve(args: argparse.Namespace) -> int:
             force=args.force,
             checkpoint_every=args.checkpoint_every,
             keep_checkpoints=args.keep_checkpoints,
+            max_steps=args.max_steps,
             progress=not args.no_progress,
             argv=sys.argv,
         )
@@ -338,6 +339,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     )
 
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+    if args.max_steps is not None:
+        from evolution.config import MAX_RUN_STEPS
+
+        check_integer("--max-steps", args.max_steps, 1, MAX_RUN_STEPS)
     spec = SweepSpec(
         methods,
         parse_seeds(args.seeds),
@@ -345,6 +350,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         _settings(args),
         policies=args.policies,
         grid=parse_grid(args.grid),
+        max_steps=args.max_steps,
     )
     spec.check()  # every cell's settings, before anything is written
     if args.resume:
@@ -450,6 +456,17 @@ def _add_setting_options(p: argparse.ArgumentParser) -> None:
         default=[],
         help="change one setting, e.g. --set survival.mate_distance=0.4 (repeatable; "
         "`cyber-rodent config` lists every key)",
+    )
+
+
+def _add_max_steps(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--max-steps",
+        type=_int_arg("--max-steps"),
+        default=None,
+        help="stop a run after this many control steps in all, even if its generations are "
+        "not complete: a budget for populations that may never complete one (agents that "
+        "learn from zero die before they mate); resume keeps it (default: no budget)",
     )
 
 
@@ -614,6 +631,7 @@ def build_parser(command: str | None = None) -> CliParser:
         help="newest checkpoints to keep (default 3; 0 keeps every generation, which "
         "'transfer --generation' needs)",
     )
+    _add_max_steps(evolve)
     _add_run_options(evolve)
     evolve.set_defaults(func=_cmd_evolve)
 
@@ -673,6 +691,7 @@ def build_parser(command: str | None = None) -> CliParser:
         help="a grid axis, e.g. --grid survival.reflex_max_steps=4,8,16 (repeatable: every "
         "cell of the product runs every method and seed)",
     )
+    _add_max_steps(sweep)
     _add_run_options(sweep)
     sweep.set_defaults(func=_cmd_sweep)
 

@@ -198,7 +198,7 @@ def run(
         if versions is not None:
             text = json.dumps(versions, indent=2, sort_keys=True, default=repr) + "\n"
             write_text(out / VERSIONS_FILE, text)
-        _write_json(out / RUN_FILE, run_record(runner, generations))
+        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps))
 
         def write_results(r: EvolutionRunner) -> None:
             write_tables(out, r.statistics(), robot_table(r), learning_table(r))
@@ -215,7 +215,7 @@ def run(
         write_tables(out, table, robot_table(runner), learning_table(runner))
         with atomic_output(out / EVENTS_FILE) as temp:
             runner.events.write_csv(temp)
-        _write_json(out / RUN_FILE, run_record(runner, generations))
+        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps))
     return table
 
 
@@ -241,10 +241,13 @@ def holds_a_run(out: Path) -> bool:
     return (out / RUN_FILE).exists() or latest_checkpoint(out / CHECKPOINT_DIR) is not None
 
 
-def run_record(runner: EvolutionRunner, generations: int) -> dict[str, Any]:
+def run_record(
+    runner: EvolutionRunner, generations: int, max_steps: int | None = None
+) -> dict[str, Any]:
     """The content of ``run.json``: config, the settings changed from the paper's defaults,
-    seed, policies, target, versions and source commit, summary."""
-    return {
+    seed, policies, target (generations, and the step budget if one was set), versions and
+    source commit, summary."""
+    record: dict[str, Any] = {
         "config": dataclasses.asdict(runner.config),
         "settings": changed(runner.config),
         "seed": runner.seed,
@@ -258,6 +261,9 @@ def run_record(runner: EvolutionRunner, generations: int) -> dict[str, Any]:
         },
         "summary": runner.summary(),
     }
+    if max_steps is not None:  # runs without a budget keep the record they always had
+        record["max_steps"] = max_steps
+    return record
 
 
 def package_version() -> str | None:

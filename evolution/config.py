@@ -51,6 +51,9 @@ MAX_POPULATION = 10_000
 #: Most generations of one run or sweep member (830x the paper's 120): a generation is at least
 #: one life of every agent, so a larger number cannot finish and is a typo.
 MAX_GENERATIONS = 100_000
+#: Largest step budget of one run (``--max-steps``): about 170 days of simulated robot time at
+#: the default 0.2 s control step, far more than any run needs.
+MAX_RUN_STEPS = 100_000_000
 
 
 @dataclass(frozen=True)

@@ -50,7 +50,7 @@ from evolution.api import (
     holds_a_run,
     make_config,
 )
-from evolution.config import MAX_GENERATIONS
+from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS
 from evolution.runner import EvolutionRunner, RunConfig, latest_checkpoint, policy_identity
 
 FIGURES_DIR = "figures"
@@ -252,10 +252,15 @@ def evolve(
     force: bool = False,
     checkpoint_every: int = 1,
     keep_checkpoints: int = 3,
+    max_steps: int | None = None,
     progress: bool = True,
     argv: list[str] | None = None,
 ) -> tuple[Path, pd.DataFrame]:
     """Run (or continue) one EE/CE run in a run directory and draw its figures.
+
+    ``max_steps`` stops the run after that many control steps in all even if its generations
+    are not complete (a population that cannot complete its generations: agents that learn
+    from zero die before they mate).
 
     Everything is validated before the directory is touched, and the directory is created
     only once the run is built (:func:`evolution.api.run` writes ``versions.json`` and
@@ -269,6 +274,8 @@ def evolve(
     check_integer("--seed", seed, 0)
     check_integer("--checkpoint-every", checkpoint_every, 1, MAX_GENERATIONS)
     check_integer("--keep-checkpoints", keep_checkpoints, 0, MAX_GENERATIONS)
+    if max_steps is not None:
+        check_integer("--max-steps", max_steps, 1, MAX_RUN_STEPS)
     chosen = policies_by_name(policies)
     path = prepare_out_dir(out, resume=resume, force=force)
     table = run(
@@ -280,6 +287,7 @@ def evolve(
         resume=resume,
         checkpoint_every=checkpoint_every,
         keep_checkpoints=keep_checkpoints,
+        max_steps=max_steps,
         progress=progress,
         versions=environment_versions(argv),
         **overrides,
@@ -338,6 +346,8 @@ def resume_run(
         target = int(generations if generations is not None else record["target_generations"])
         identity = str(record["policies"])
         seed = int(record["seed"])
+        budget = record.get("max_steps")
+        max_steps = None if budget is None else int(budget)
     except (KeyError, TypeError, ValueError) as err:
         raise ValueError(f"{path / RUN_FILE} is incomplete or malformed ({err!r})") from None
     chosen = policies_for_identity(identity)
@@ -355,6 +365,7 @@ def resume_run(
         out_dir=path,
         policies=chosen,
         resume=True,
+        max_steps=max_steps,
         progress=progress,
     )
     plot_run_dir(path)

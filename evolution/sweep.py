@@ -68,7 +68,7 @@ from typing import Any, NamedTuple
 import pandas as pd
 
 from cyber_rodent.validation import check_integer, choice, validate_fields
-from evolution.config import MAX_GENERATIONS
+from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS
 from evolution.grid import Cell, Grid, cells
 
 METHODS = ("ee", "ce")
@@ -87,6 +87,9 @@ STEP_SECONDS = 1 / 1000
 #: Cost of rendered vision per control step, a multiple of the geometric loop's (README,
 #: Performance: 10.3x).
 RENDERED_STEP_COST = 10.3
+#: Cost of learning mode per control step, a multiple of the fixed behaviours' loop (README,
+#: Performance: ``python -m benchmarks``).
+LEARNING_STEP_COST = 1.3
 #: Control steps of a generation per agent life in it: EE generations close only after the
 #: replacements of dead agents have lived too (README, Performance: 1.40-1.50 M steps for 120
 #: generations of 25 lives of 400 steps, ~1.2x); CE's lives are the generation (~0.95x).
@@ -119,6 +122,8 @@ class SweepSpec:
             hand-written baseline).
         grid: axes of settings, ``((dotted key, values), ...)``; every cell of their product
             runs every method and seed, its settings over ``overrides``. Empty: one cell.
+        max_steps: stop each run after this many control steps even if its generations are
+            not complete (None: no budget).
     """
 
     methods: tuple[str, ...]
@@ -127,6 +132,7 @@ class SweepSpec:
     overrides: dict[str, Any] = field(default_factory=dict)
     policies: str = choice("trained", POLICIES)
     grid: Grid = ()
+    max_steps: int | None = None
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -141,6 +147,8 @@ class SweepSpec:
         for seed in self.seeds:
             check_integer("seed", seed, 0)
         check_integer("generations", self.generations, 1, MAX_GENERATIONS)
+        if self.max_steps is not None:
+            check_integer("max_steps", self.max_steps, 1, MAX_RUN_STEPS)
         n_runs = len(self.methods) * len(self.seeds) * math.prod(len(v) for _, v in self.grid)
         if n_runs > MAX_RUNS:
             raise ValueError(
@@ -221,6 +229,7 @@ def run_one(
     overrides: dict[str, Any],
     policies: str = "trained",
     keep_checkpoints: int = KEEP_CHECKPOINTS,
+    max_steps: int | None = None,
 ) -> pd.DataFrame:
     """Run (or resume) one sweep member in its run directory; the local worker entry point."""
     from behaviours import BehaviourPolicies
@@ -229,7 +238,7 @@ def run_one(
     chosen = BehaviourPolicies.reactive() if policies == "reactive" else None
     return run(
         method, generations, seed, out_dir=out, resume=True, policies=chosen,
-        keep_checkpoints=keep_checkpoints, **overrides,
+        keep_checkpoints=keep_checkpoints, max_steps=max_steps, **overrides,
     )  # fmt: skip
 
 
@@ -243,6 +252,7 @@ class RunChunk(NamedTuple):
         keep_checkpoints: newest checkpoints a run directory keeps (0: all).
         checkpoint: ``(file name, bytes)`` of the newest checkpoint the driver holds; None
             starts the run.
+        max_steps: the run's step budget (None: none).
     """
 
     method: str
@@ -253,6 +263,7 @@ class RunChunk(NamedTuple):
     policies: str
     keep_checkpoints: int
     checkpoint: tuple[str, bytes] | None
+    max_steps: int | None = None
 
 
 class ChunkResult(NamedTuple):
@@ -263,11 +274,13 @@ class ChunkResult(NamedTuple):
         files: path in the run directory (``checkpoints/gen_00003.ckpt``, ``statistics.csv``)
             -> content, for every file the chunk wrote.
         table: the run's statistics so far (:meth:`EvolutionRunner.statistics`).
+        finished: the run reached its target generations or spent its step budget.
     """
 
     completed: int
     files: dict[str, bytes]
     table: pd.DataFrame
+    finished: bool = False
 
 
 def advance_run(task: RunChunk) -> ChunkResult:
@@ -324,12 +337,15 @@ def advance_run(task: RunChunk) -> ChunkResult:
                 checkpoint_dir=checkpoints,
                 checkpoint_every=1,
                 keep_checkpoints=task.keep_checkpoints,
+                max_steps=task.max_steps,
             )
             write_tables(out, table, robot_table(runner), learning_table(runner))
             completed = runner.completed_generations
-            if completed >= task.generations:  # api.run writes the event log at the end
+            spent = task.max_steps is not None and runner.steps >= task.max_steps
+            finished = completed >= task.generations or spent
+            if finished:  # api.run writes the event log at the end
                 runner.events.write_csv(out / EVENTS_FILE)
-            record = run_record(runner, task.generations)
+            record = run_record(runner, task.generations, task.max_steps)
         # The format of api.run's run.json (the tests compare the two byte for byte).
         (out / RUN_FILE).write_text(json.dumps(record, indent=2, sort_keys=True, default=repr))
         files = {
@@ -337,7 +353,7 @@ def advance_run(task: RunChunk) -> ChunkResult:
             for path in sorted(out.rglob("*"))
             if path.is_file() and path != given
         }
-    return ChunkResult(completed, files, table)
+    return ChunkResult(completed, files, table, finished)
 
 
 def check_ray_address(address: str, timeout: float = 3.0) -> None:
@@ -425,7 +441,12 @@ def projected_seconds(spec: SweepSpec, workers: int) -> float:
             cost *= evo.n_robots / default.evolution.n_robots
             if config.vision == "rendered":
                 cost *= RENDERED_STEP_COST
-            total += len(spec.seeds) * spec.generations * steps * cost
+            if evo.learning.enabled:
+                cost *= LEARNING_STEP_COST
+            run_steps = spec.generations * steps
+            if spec.max_steps is not None:
+                run_steps = min(run_steps, spec.max_steps)
+            total += len(spec.seeds) * run_steps * cost
     return total / max(1, min(workers, len(spec.runs)))
 
 
@@ -574,6 +595,7 @@ def _sweep_local(
                     spec.settings_of(member.cell),
                     spec.policies,
                     keep_checkpoints,
+                    spec.max_steps,
                 ): member
                 for member in todo
             }
@@ -628,6 +650,7 @@ class _RayPlan(NamedTuple):
             self.spec.policies,
             self.keep_checkpoints,
             None if newest is None else (newest.name, newest.read_bytes()),
+            self.spec.max_steps,
         )
 
     def store(self, member: SweepRun, result: ChunkResult) -> None:
@@ -737,7 +760,7 @@ def _sweep_ray(
                     else:
                         submit(member, _cause(err))  # from the driver's newest checkpoint
                     continue
-                if result.completed >= spec.generations:
+                if result.finished:
                     results[member] = result.table
                 else:
                     submit(member)

@@ -84,9 +84,41 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
             ["evolve", "--set", "world.pack_reactivation_steps=-1", "--out", "{new}"],
             "world.pack_reactivation_steps must be an integer in [0, 1000000], got -1",
         ),
+        (
+            ["evolve", "--set", "learning.alpha_high=2", "--out", "{new}"],
+            "learning.alpha_high must be a number in (0, 1], got 2.0",
+        ),
+        (
+            ["evolve", "--set", "learning.epsilon_low=-0.1", "--out", "{new}"],
+            "learning.epsilon_low must be a number in [0, 1]",
+        ),
+        (
+            ["evolve", "--set", "learning.alpha_low=0.9", "--out", "{new}"],
+            "learning.alpha_low must be <= learning.alpha_high (0.5), got 0.9",
+        ),
+        (
+            ["evolve", "--set", "learning.inheritance=baldwinian", "--out", "{new}"],
+            "learning.inheritance must be one of darwinian, lamarckian",
+        ),
+        (["evolve", "--set", "learning.init=random", "--out", "{new}"], "learning.init"),
+        (
+            ["evolve", "--set", "learning.enabled=true", "--policies", "reactive", "--out",
+             "{new}"],
+            "learning mode needs tile-coded behaviours",
+        ),  # fmt: skip
+        (["evolve", "--max-steps", "0", "--out", "{new}"], "--max-steps"),
+        (
+            ["evolve", "--set", "reproduction.energy_full=0", "--out", "{new}"],
+            "reproduction.energy_full must be a number in (0",
+        ),
     ],
     "sweep": [
         (["sweep"], "--out"),
+        (["sweep", "--out", "{new}", "--max-steps", "-5"], "--max-steps"),
+        (
+            ["sweep", "--out", "{new}", "--grid", "learning.inheritance=darwinian,x"],
+            "learning.inheritance",
+        ),
         (["sweep", "--out", "{new}", "--seeds", "9-2"], "seed range"),
         (["sweep", "--out", "{new}", "--seeds", "a"], "seed range"),
         (["sweep", "--out", "{new}", "--seeds", "0-100000000000"], "more than"),

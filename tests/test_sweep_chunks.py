@@ -62,3 +62,27 @@ def test_a_chunk_refuses_the_checkpoint_of_another_run() -> None:
     checkpoint = ("gen_00001.ckpt", first.files["checkpoints/gen_00001.ckpt"])
     with pytest.raises(CheckpointError):
         advance_run(RunChunk("ee", 1, 2, 1, TINY, "reactive", KEEP_CHECKPOINTS, checkpoint))
+
+
+def test_a_step_budget_ends_a_run_in_chunks_as_in_one_process(tmp_path: Path) -> None:
+    """A budget of 150 control steps stops the run before its 3 generations (each takes 120
+    steps here): locally and in chunks it stops at step 150 with the same files, and the
+    chunk that spends the budget reports the run finished."""
+    whole = tmp_path / "whole"
+    run_one("ee", 0, GENERATIONS, str(whole), TINY, "reactive", max_steps=150)
+    record = (whole / "run.json").read_text()
+    assert '"max_steps": 150' in record and '"control_steps": 150' in record
+    held: dict[str, bytes] = {}
+    checkpoint: tuple[str, bytes] | None = None
+    for _ in range(5):
+        task = RunChunk("ee", 0, GENERATIONS, 1, TINY, "reactive", KEEP_CHECKPOINTS,
+                        checkpoint, max_steps=150)  # fmt: skip
+        result = advance_run(task)
+        held.update(result.files)
+        kept = sorted(name for name in held if name.startswith("checkpoints/"))
+        checkpoint = (Path(kept[-1]).name, held[kept[-1]])
+        if result.finished:
+            break
+    assert result.finished and result.completed == 1
+    for name, data in files_of(whole).items():
+        assert held[name] == data, name
