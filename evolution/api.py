@@ -233,7 +233,11 @@ def learning_table(runner: EvolutionRunner) -> pd.DataFrame | None:
 
     if runner.learning is None:
         return None
-    return pd.DataFrame(runner.learning.record_rows())
+    table = pd.DataFrame(runner.learning.record_rows())
+    if len(table):
+        # Lives of generations the run has not closed yet (slots run ahead) are a partial count.
+        table.insert(2, "closed", table["generation"] < runner.completed_generations)
+    return table
 
 
 def holds_a_run(out: Path) -> bool:

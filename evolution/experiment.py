@@ -459,7 +459,12 @@ def plot_run_dir(
             continue  # a cell none of whose runs has finished a generation yet
     if not written:
         raise ValueError(f"no {STATISTICS_FILE} found in the cells of {root}")
-    return written + write_cell_comparison(root, target)
+    from evolution.learning_figures import load_learning, write_learning_report
+
+    learning = {cell.name: load_learning(root / cell.name) for cell in cells(grid)}
+    return (
+        written + write_cell_comparison(root, target) + write_learning_report(learning, target)
+    )
 
 
 def _plot_methods(root: Path, figures: Path) -> list[Path]:
@@ -484,6 +489,9 @@ def _plot_methods(root: Path, figures: Path) -> list[Path]:
         written.append(summary)
         written += write_report(chosen, figures)
         written += plot_completions(chosen, figures / "completions")
+    from evolution.learning_figures import load_learning, write_learning_report
+
+    written += write_learning_report({root.name: load_learning(root)}, figures)
     return written
 
 
