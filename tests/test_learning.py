@@ -420,6 +420,13 @@ def test_bad_learning_settings(field: str, value: Any, message: str) -> None:
         LearningConfig(**{field: value})
 
 
+def test_lamarckian_inheritance_needs_embodied_evolution() -> None:
+    evo = EvolutionConfig(learning=LearningConfig(enabled=True, inheritance="lamarckian"))
+    with pytest.raises(ValueError, match="learning.inheritance: lamarckian needs method ee"):
+        RunConfig(method="ce", evolution=evo)
+    RunConfig(method="ce", evolution=EvolutionConfig(learning=LearningConfig(enabled=True)))
+
+
 def test_a_range_must_not_be_upside_down() -> None:
     with pytest.raises(ValueError, match=r"learning.alpha_low must be <= learning.alpha_high"):
         LearningConfig(alpha_low=0.6, alpha_high=0.5)
