@@ -8,8 +8,10 @@ machine changes, and ``cyber-rodent plot <to>`` draws the figures from the publi
 
     .venv/bin/python -m benchmarks.publish_runs --from runs/fig6 --to results/fig6
 
-A run counts as finished when its statistics cover generations 0 to its target - 1. Runs already
-published with identical files are left alone; the names of newly published runs are printed.
+A run counts as finished when its statistics cover generations 0 to its target - 1, or when it
+spent its step budget (``--max-steps``). A learning-mode run's ``learning.csv`` is published
+with it. Runs already published with identical files are left alone; the names of newly
+published runs are printed.
 """
 
 from __future__ import annotations
@@ -24,17 +26,24 @@ import pandas as pd
 
 #: What a published run holds: its per-generation tables and its record.
 PUBLISHED_FILES = ("statistics.csv", "statistics_per_robot.csv", "run.json")
+#: Published too where a run has it (learning mode).
+OPTIONAL_FILES = ("learning.csv",)
 
 
 def finished(run: Path) -> bool:
-    """Has the run in ``run`` completed its target generations?"""
+    """Has the run in ``run`` completed its target generations or spent its step budget?"""
     try:
         record = json.loads((run / "run.json").read_text())
         table = pd.read_csv(run / "statistics.csv")
     except (OSError, ValueError, pd.errors.EmptyDataError):
         return False
+    budget = record.get("max_steps")
+    steps = record.get("summary", {}).get("control_steps", 0)
+    if budget is not None and int(steps) >= int(budget):
+        return True
     target = int(record.get("target_generations", 0))
-    return target > 0 and set(range(target)) <= set(table["generation"].astype(int))
+    generations = set(table["generation"].astype(int)) if "generation" in table else set()
+    return target > 0 and set(range(target)) <= generations
 
 
 def publish(source: Path, destination: Path) -> list[str]:
@@ -44,14 +53,15 @@ def publish(source: Path, destination: Path) -> list[str]:
         if not finished(run):
             continue
         target = destination / run.name
+        names = PUBLISHED_FILES + tuple(n for n in OPTIONAL_FILES if (run / n).is_file())
         same = all(
             (target / name).exists() and (target / name).read_bytes() == (run / name).read_bytes()
-            for name in PUBLISHED_FILES
+            for name in names
         )
         if same:
             continue
         target.mkdir(parents=True, exist_ok=True)
-        for name in PUBLISHED_FILES:
+        for name in names:
             shutil.copyfile(run / name, target / f".{name}.partial")
             (target / f".{name}.partial").replace(target / name)
         copied.append(run.name)

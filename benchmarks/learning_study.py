@@ -1,0 +1,299 @@
+"""Learning mode against the paper's fixed behaviours: the experiments, their tables and figures.
+
+Usage::
+
+    .venv/bin/python -m benchmarks.learning_study --run [--workers 2]   # the sweeps (resumable)
+    .venv/bin/python -m benchmarks.learning_study --publish             # results/ + docs/images/
+
+``--run`` runs four sweeps into ``runs/learning`` (each resumes where it stopped), all EE, 60
+generations and a budget of :data:`MAX_STEPS` control steps per run (the steps of 60 generations
+of the fixed behaviours with a third to spare: a population that cannot complete generations
+stops after the same robot time as the others):
+
+* ``fixed``: the shipped behaviours, unchanged during life (the paper), seeds 0-4;
+* ``modes``: learning mode, a grid of ``learning.init`` (shipped, zero) × ``learning.inheritance``
+  (darwinian, lamarckian), seeds 0-4;
+* ``energy_dependent`` and ``pack_reactivation``: one variant each against the fixed default,
+  seed 0 (``reproduction.energy_dependent``; ``world.pack_reactivation_steps`` =
+  :data:`REACTIVATION_STEPS`).
+
+``--publish`` copies the finished runs' tables to ``results/learning/`` (statistics,
+learning records, ``run.json``: :mod:`benchmarks.publish_runs`) and draws from them:
+
+* ``results/learning/modes.csv``: per mode, the runs, generations closed, events per 1,000
+  control steps (dockings, matings, deaths: comparable whether or not generations closed),
+  batteries and matings over :data:`WINDOW` (mean ± sample std over runs) and the two-sided
+  Mann-Whitney p-value and rank-biserial effect of each mode against ``fixed``;
+* ``results/learning/meta.csv`` and ``lifetime.csv``: the evolved learning parameters per
+  generation and the within-life curves (:mod:`evolution.learning_figures`);
+* ``results/learning/variants.csv``: the two variants against the default, seed 0;
+* ``docs/images/learning_modes.png``, ``learning_meta.png``, ``learning_lifetime.png``,
+  ``learning_variants.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from benchmarks.publish_runs import publish
+from cyber_rodent.atomic import atomic_output
+from evolution.comparison import compare_methods, run_means
+from evolution.figures import aggregate_runs, save_figure, styled_pyplot
+from evolution.learning_figures import (
+    lifetime_table,
+    load_learning,
+    meta_table,
+    plot_lifetime,
+    plot_meta_parameters,
+)
+
+RUNS = Path("runs/learning")
+RESULTS = Path("results/learning")
+IMAGES = Path("docs/images")
+GENERATIONS = 60
+SEEDS = "0-4"
+#: Control steps per run: 60 generations of the fixed behaviours take about 700,000.
+MAX_STEPS = 800_000
+#: ``world.pack_reactivation_steps`` of the variant: 20 s, a pack's worth of absence.
+REACTIVATION_STEPS = 100
+#: Generations each run's batteries and matings are averaged over.
+WINDOW = (50, 59)
+#: The modes, in table order: label -> (sweep, cell).
+MODES = {
+    "fixed": ("fixed", ""),
+    "shipped, Darwinian": ("modes", "init=shipped,inheritance=darwinian"),
+    "shipped, Lamarckian": ("modes", "init=shipped,inheritance=lamarckian"),
+    "zero, Darwinian": ("modes", "init=zero,inheritance=darwinian"),
+    "zero, Lamarckian": ("modes", "init=zero,inheritance=lamarckian"),
+}
+VARIANTS = {
+    "default": ("fixed", "", 0),
+    "energy-dependent reproduction": ("energy_dependent", "", 0),
+    f"pack reactivation {REACTIVATION_STEPS} steps": ("pack_reactivation", "", 0),
+}
+
+
+def sweep_commands(workers: int) -> list[tuple[str, list[str]]]:
+    """The four sweeps: (name, ``cyber-rodent`` arguments)."""
+    common = ["--methods", "ee", "--generations", str(GENERATIONS), "--max-steps",
+              str(MAX_STEPS), "--workers", str(workers), "--no-progress"]  # fmt: skip
+    return [
+        ("fixed", ["sweep", "--seeds", SEEDS, *common]),
+        ("modes", ["sweep", "--seeds", SEEDS, *common, "--set", "learning.enabled=true",
+                   "--grid", "learning.init=shipped,zero",
+                   "--grid", "learning.inheritance=darwinian,lamarckian"]),
+        ("energy_dependent", ["sweep", "--seeds", "0", *common,
+                              "--set", "reproduction.energy_dependent=true"]),
+        ("pack_reactivation", ["sweep", "--seeds", "0", *common,
+                               "--set", f"world.pack_reactivation_steps={REACTIVATION_STEPS}"]),
+    ]  # fmt: skip
+
+
+def run_sweeps(workers: int) -> None:
+    """Run (or resume) every sweep, one after another."""
+    for name, args in sweep_commands(workers):
+        out = RUNS / name
+        resume = ["--resume"] if (out / "sweep.json").exists() else []
+        command = [sys.executable, "-m", "cyber_rodent.cli", *args, "--out", str(out), *resume]
+        print(" ".join(command[2:]), flush=True)
+        subprocess.run(command, check=True)
+
+
+# --- publishing -------------------------------------------------------------------------------
+def publish_all() -> list[str]:
+    """Copy every finished run's tables into ``results/learning`` (same layout as the runs)."""
+    copied = []
+    for sweep in ("fixed", "modes", "energy_dependent", "pack_reactivation"):
+        root = RUNS / sweep
+        if not root.is_dir():
+            continue
+        cells = [p for p in root.iterdir() if p.is_dir() and "=" in p.name] or [root]
+        for cell in cells:
+            target = RESULTS / sweep / (cell.name if cell != root else "")
+            copied += [f"{sweep}/{name}" for name in publish(cell, target)]
+    return copied
+
+
+def run_dirs(sweep: str, cell: str, seeds: Sequence[int] | None = None) -> list[Path]:
+    """The published run directories of a sweep cell (EE runs, seed order)."""
+    root = RESULTS / sweep / cell if cell else RESULTS / sweep
+    if not root.is_dir():
+        return []
+    runs = sorted(p for p in root.iterdir() if p.is_dir() and p.name.startswith("ee-seed"))
+    if seeds is not None:
+        runs = [p for p in runs if int(p.name.removeprefix("ee-seed")) in seeds]
+    return runs
+
+
+def _statistics(runs: Sequence[Path]) -> list[pd.DataFrame]:
+    return [pd.read_csv(run / "statistics.csv") for run in runs]
+
+
+def _events_per_thousand(runs: Sequence[Path]) -> dict[str, tuple[float, float]]:
+    """Dockings, matings and deaths per 1,000 control steps: mean and sample std over runs."""
+    rates: dict[str, list[float]] = {"dockings": [], "matings": [], "deaths": []}
+    for run in runs:
+        summary = json.loads((run / "run.json").read_text())["summary"]
+        steps = max(1, int(summary["control_steps"]))
+        for name in rates:
+            rates[name].append(1000.0 * float(summary[name]) / steps)
+    return {name: _mean_std(values) for name, values in rates.items()}
+
+
+def _mean_std(values: Sequence[float]) -> tuple[float, float]:
+    finite = np.array([v for v in values if math.isfinite(v)], dtype=float)
+    if not len(finite):
+        return math.nan, math.nan
+    return float(finite.mean()), float(finite.std(ddof=1)) if len(finite) > 1 else math.nan
+
+
+def modes_table() -> pd.DataFrame:
+    """One row per mode (see the module docstring)."""
+    fixed = _statistics(run_dirs(*MODES["fixed"]))
+    rows = []
+    for label, (sweep, cell) in MODES.items():
+        runs = run_dirs(sweep, cell)
+        if not runs:
+            continue
+        tables = _statistics(runs)
+        closed = [len(t) for t in tables]
+        steps = [json.loads((r / "run.json").read_text())["summary"]["control_steps"]
+                 for r in runs]  # fmt: skip
+        row: dict[str, object] = {
+            "mode": label,
+            "runs": len(runs),
+            "generations_closed_mean": float(np.mean(closed)),
+            "generations_closed_min": int(min(closed)),
+            "control_steps_mean": float(np.mean(steps)),
+        }
+        for name, (mean, std) in _events_per_thousand(runs).items():
+            row[f"{name}_per_1000_steps_mean"] = mean
+            row[f"{name}_per_1000_steps_std"] = std
+        for quantity, column in (("batteries", "batteries_mean"), ("matings", "matings_mean")):
+            mean, std = _mean_std(list(run_means(tables, column, *WINDOW)))
+            row[f"{quantity}_{WINDOW[0]}_{WINDOW[1]}_mean"] = mean
+            row[f"{quantity}_{WINDOW[0]}_{WINDOW[1]}_std"] = std
+            if label != "fixed" and fixed:
+                test = compare_methods(tables, fixed, column, WINDOW)
+                row[f"{quantity}_p_vs_fixed"] = test.p_value
+                row[f"{quantity}_rank_biserial_vs_fixed"] = test.rank_biserial
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def variants_table() -> pd.DataFrame:
+    rows = []
+    for label, (sweep, cell, seed) in VARIANTS.items():
+        runs = run_dirs(sweep, cell, [seed])
+        if not runs:
+            continue
+        table = _statistics(runs)[0]
+        row: dict[str, object] = {"variant": label, "seed": seed, "generations_closed": len(table)}
+        for name, (mean, _) in _events_per_thousand(runs).items():
+            row[f"{name}_per_1000_steps"] = mean
+        for quantity, column in (("batteries", "batteries_mean"), ("matings", "matings_mean"),
+                                 ("completed", "completed")):  # fmt: skip
+            row[f"{quantity}_{WINDOW[0]}_{WINDOW[1]}"] = float(run_means([table], column,
+                                                                         *WINDOW)[0])  # fmt: skip
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def plot_curves(
+    groups: Mapping[str, Sequence[pd.DataFrame]], out_base: Path, title: str
+) -> list[Path]:
+    """Batteries and matings per generation, mean ± std over runs, one line per group."""
+    plt = styled_pyplot()
+    palette = ["#555555", "#1f4fd1", "#2a9d3a", "#d1261f", "#e08a00"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for ax, (column, name) in zip(
+        axes, (("batteries_mean", "batteries captured"), ("matings_mean", "matings")), strict=True
+    ):
+        for colour, (label, tables) in zip(palette, groups.items(), strict=False):
+            tables = [t for t in tables if len(t)]
+            if not tables:
+                ax.plot([], [], color=colour, label=f"{label}: no generation closed")
+                continue
+            stats = aggregate_runs(tables, column)
+            x = stats.index.to_numpy()
+            ax.plot(x, stats["mean"], color=colour, label=f"{label} ({len(tables)} runs)")
+            ax.fill_between(x, stats["mean"] - stats["std"], stats["mean"] + stats["std"],
+                            color=colour, alpha=0.12)  # fmt: skip
+        ax.set_xlabel("generation")
+        ax.set_ylabel(f"{name} per life")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, loc="best")
+    fig.suptitle(title)
+    fig.tight_layout()
+    paths = save_figure(fig, out_base)
+    plt.close(fig)
+    return paths
+
+
+def _write_csv(table: pd.DataFrame, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_output(path) as temp:
+        table.to_csv(temp, index=False, float_format="%.5g")
+    return path
+
+
+def publish_results() -> list[Path]:
+    """Tables and figures from the published runs."""
+    written = [_write_csv(modes_table(), RESULTS / "modes.csv")]
+    learning = {
+        label: [t for run in run_dirs(sweep, cell) for t in load_learning(run)]
+        for label, (sweep, cell) in MODES.items()
+        if label != "fixed"
+    }
+    meta, lifetime = meta_table(learning), lifetime_table(learning)
+    written.append(_write_csv(meta, RESULTS / "meta.csv"))
+    written.append(_write_csv(lifetime, RESULTS / "lifetime.csv"))
+    written += plot_meta_parameters(meta, IMAGES / "learning_meta")
+    written += plot_lifetime(lifetime, IMAGES / "learning_lifetime")
+    groups = {label: _statistics(run_dirs(sweep, cell)) for label, (sweep, cell) in MODES.items()}
+    written += plot_curves(
+        groups, IMAGES / "learning_modes",
+        f"EE with fixed and learned behaviours ({GENERATIONS} generations or "
+        f"{MAX_STEPS:,} control steps; mean ± std over seeds)",
+    )  # fmt: skip
+    variants = variants_table()
+    if len(variants):
+        written.append(_write_csv(variants, RESULTS / "variants.csv"))
+        written += plot_curves(
+            {label: _statistics(run_dirs(sweep, cell, [seed]))
+             for label, (sweep, cell, seed) in VARIANTS.items()},
+            IMAGES / "learning_variants",
+            "Variants from the Cyber Rodent literature against the default (EE, seed 0)",
+        )  # fmt: skip
+    return [p for p in written if p.suffix != ".pdf" or p.parent != IMAGES]
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run", action="store_true", help="run (or resume) the sweeps")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--publish", action="store_true", help="publish tables and figures")
+    args = parser.parse_args(argv)
+    if not (args.run or args.publish):
+        parser.error("choose --run, --publish or both")
+    if args.run:
+        run_sweeps(args.workers)
+    if args.publish:
+        for name in publish_all():
+            print(f"published {name}")
+        for path in publish_results():
+            print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
