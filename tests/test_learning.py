@@ -556,3 +556,20 @@ def test_learning_runs_agree_across_backends_and_paths(backend: str, stepwise: b
     other_events, other_values = _learning_run(backend, stepwise, 250)
     assert len(events) > 0 and events.equals(other_events)
     np.testing.assert_array_equal(values, other_values)
+
+
+def test_deploy_refuses_a_learning_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A bundle carries genomes and the shipped behaviours, not an agent's learned values."""
+    import json
+
+    from cyber_rodent.cli import main
+
+    run = tmp_path / "run"
+    run.mkdir()
+    record = {"config": {"evolution": {"learning": {"enabled": True}}}, "policies": "learned:x",
+              "seed": 0, "target_generations": 1}  # fmt: skip
+    (run / "run.json").write_text(json.dumps(record))
+    status = main(["deploy", "--from", str(run), "--out", str(tmp_path / "bundle")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1 and "is a learning-mode run" in err[0]
+    assert not (tmp_path / "bundle").exists()

@@ -91,6 +91,13 @@ def _run(args: argparse.Namespace, prog: str) -> int:
         record = read_run_record(source)
     except ValueError as err:
         raise ValueError(f"--from: {err}") from None
+    learning = record.get("config", {}).get("evolution", {}).get("learning", {})
+    if isinstance(learning, dict) and learning.get("enabled"):
+        raise ValueError(
+            f"--from: {source} is a learning-mode run: its agents act on values they learned "
+            "in their lives, which a bundle does not carry; deploy takes runs of the fixed "
+            "behaviours"
+        )
     if generation is None:
         checkpoint = latest_checkpoint(source / CHECKPOINT_DIR)
         if checkpoint is None:
