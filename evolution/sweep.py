@@ -89,7 +89,7 @@ STEP_SECONDS = 1 / 1000
 RENDERED_STEP_COST = 10.3
 #: Cost of learning mode per control step, a multiple of the fixed behaviours' loop (README,
 #: Performance: ``python -m benchmarks``).
-LEARNING_STEP_COST = 1.3
+LEARNING_STEP_COST = 1.2
 #: Control steps of a generation per agent life in it: EE generations close only after the
 #: replacements of dead agents have lived too (README, Performance: 1.40-1.50 M steps for 120
 #: generations of 25 lives of 400 steps, ~1.2x); CE's lives are the generation (~0.95x).
