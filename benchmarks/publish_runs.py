@@ -1,6 +1,6 @@
 """Copy the small tables of a sweep's finished runs into ``results/`` (to be committed).
 
-A paper-scale sweep (Fig. 6: 40 runs of 120 generations) outlasts a working session, and a run
+A paper-scale sweep (Fig. 6: 40 runs of 120 generations) outlasts a working day, and a run
 directory holds checkpoints and event logs that never belong in the repository. As each run
 finishes, its statistics tables and its ``run.json`` (resolved config, seed, package version,
 git commit) are copied to ``<to>/<method>-seed<NNN>/``, so no finished run is lost if the

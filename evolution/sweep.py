@@ -164,7 +164,7 @@ class SweepSpec:
     def runs(self) -> list[SweepRun]:
         """Every (method, seed, cell) in a fixed order: cell by cell, seed by seed, then method.
 
-        Workers take runs in this order, so a sweep stopped part-way (a session's end, a
+        Workers take runs in this order, so a sweep stopped part-way (a machine's time limit, a
         cluster's time limit) has finished whole seeds of every method, which are comparable,
         rather than every seed of one method and none of the other.
         """
