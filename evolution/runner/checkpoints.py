@@ -253,8 +253,8 @@ def load_run(
         if not differences:
             raise
         raise CheckpointError(
-            f"{path}: the run was started with other settings ({differences}); resume it "
-            "with the settings it was started with"
+            f"{path}: checkpoint was written with a different configuration: the run was "
+            f"started with other settings ({differences}); resume it with those"
         ) from None
 
     try:
