@@ -2,7 +2,7 @@
 
 Prints ``mj_step`` calls per second for the default 4-robot / 5-pack world while the robots drive
 randomly (so there are wall hits and robot-robot contacts), the equivalent control steps per
-second (12 substeps of 1/120 s per 0.1 s control step by default), and the mean number of
+second (24 substeps of 1/120 s per 0.2 s control step by default), and the mean number of
 contacts split by kind. Every contact must be of an expected kind: packs and walls are static,
 so they never touch the floor, and chassis never touch the floor.
 
@@ -19,9 +19,11 @@ import mujoco
 import numpy as np
 
 from cyber_rodent import constants as C
+from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.world import World, WorldConfig
 
-CONTROL_DT = 0.1
+#: The default control step (``survival.control_dt``).
+CONTROL_DT = SurvivalConfig().control_dt
 
 
 def classify(world: World) -> Counter:

@@ -6,7 +6,7 @@ sensor copies, spec checks) on every step. This script times, on the default Sur
 (4 robots, 5 packs) and one shared sequence of commands:
 
 * ``raw mj_step``: only the physics: wheel speeds written into ``ctrl``, then ``mj_step`` for
-  the control step's substeps (12 x 1/120 s by default);
+  the control step's substeps (24 x 1/120 s by default);
 * ``lean``: ``SurvivalWorld.step`` (validation, energy, docking and mating checks, reflexes,
   LEDs), no observations; its physics is ``SurvivalWorld.advance_physics`` (rangefinders
   evaluated in the last substep only, bit-identical results), so it can beat raw ``mj_step``;
