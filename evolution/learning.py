@@ -221,22 +221,33 @@ class LifetimeLearning:
             self.load_agent(table, genome, int(generations.flat[table]), inherit=False)
 
     def on_births(
-        self, births: Sequence[tuple[int, int, int, int, int]], genomes: Sequence[Genome]
+        self,
+        births: Sequence[tuple[int, int, int, int, int]],
+        genomes: Sequence[Genome],
+        selection_parents: Sequence[int] = (),
     ) -> None:
         """Apply the scheduler's births (``(step, robot, slot, generation, origin)``, with the
         newborns' genomes in the same order): record the lives that ended, load the newborns.
 
-        Under Lamarckian inheritance an offspring (origin 1) keeps its slot's values: those its
-        parent learned. A newborn in a later generation than the table's agent means that
-        agent lived its full lifetime (a death leaves the slot's generation as it was).
+        Under Lamarckian inheritance an EE offspring (origin 1) keeps its slot's values: those
+        its parent learned; a CE individual (origin 4) takes the values of its first parent,
+        ``selection_parents[table]`` (:attr:`CentralisedEvolution.selection_parents`), as they
+        were before the replacement. A newborn in a later generation than the table's agent
+        means that agent lived its full lifetime (a death leaves the slot's generation as it
+        was).
         """
         lamarckian = self.learning.inheritance == "lamarckian"
+        before = None
+        if lamarckian and any(origin == 4 for *_, origin in births):
+            before = self.values.values.copy()  # the parents' values, before any is replaced
         for (_, robot, slot, generation, origin), genome in zip(births, genomes, strict=True):
             table = robot * self.subpopulation_size + slot
             previous = int(self._generation[table])
             if generation > previous:
                 self._record_life(table, previous)
             self.load_agent(table, genome, generation, inherit=lamarckian and origin == 1)
+            if before is not None and origin == 4:
+                self.values.values[table] = before[selection_parents[table]]
 
     def _record_life(self, table: int, generation: int) -> None:
         bins = self.n_age_bins

@@ -119,6 +119,7 @@ def next_generation(
     fitness: np.ndarray,
     rng: np.random.Generator,
     genetics: GeneticConfig | None = None,
+    parents: list[int] | None = None,
 ) -> tuple[list[Genome], list[bool]]:
     """The centralised GA's generational replacement.
 
@@ -131,6 +132,10 @@ def next_generation(
         fitness: (len(genomes),) fitness per individual (0 for agents that failed the task).
         rng: the central random generator.
         genetics: operator settings (paper defaults if None).
+        parents: if given, filled with each new individual's first parent: the index in
+            ``genomes`` of the first tournament winner of its pair for the pair's first child
+            (a copy of it, or the crossover child that starts with its genes), of the second
+            for the second child (what Lamarckian learning inherits from). Draws nothing.
 
     Returns:
         The new population (``len(genomes)`` genomes) and, per new individual, whether it was
@@ -147,15 +152,22 @@ def next_generation(
         )
     new: list[Genome] = []
     crossed: list[bool] = []
+    if parents is not None:
+        parents.clear()
     while len(new) < len(genomes):
-        a = genomes[tournament(fitness, rng, g.tournament_size)]
-        b = genomes[tournament(fitness, rng, g.tournament_size)]
+        first = tournament(fitness, rng, g.tournament_size)
+        second = tournament(fitness, rng, g.tournament_size)
+        a, b = genomes[first], genomes[second]
         cross = bool(rng.random() < g.crossover_probability)
         if cross:
             a, b = a.crossover(b, rng)
         new.append(a.mutate(rng, g))
         crossed.append(cross)
+        if parents is not None:
+            parents.append(first)
         if len(new) < len(genomes):
             new.append(b.mutate(rng, g))
             crossed.append(cross)
+            if parents is not None:
+                parents.append(second)
     return new, crossed

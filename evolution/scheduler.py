@@ -644,6 +644,9 @@ class CentralisedEvolution(TimeSharingScheduler):
         super().__init__(config, rng, initial_genomes, backend)
         self.generation = 0
         self.finished = np.zeros((self.n_robots, self.subpopulation_size), dtype=bool)
+        #: Per new individual of the last generational replacement (robot-major), the index
+        #: (robot-major) of its first parent in the population before it (``next_generation``).
+        self.selection_parents: list[int] = []
 
     def completed_generations(self) -> int:
         """Generations the whole population has completed."""
@@ -691,7 +694,7 @@ class CentralisedEvolution(TimeSharingScheduler):
         agents = [agent for slots in self.slots for agent in slots]
         fitness = np.array([self.ce_fitness(agent) for agent in agents])
         genomes, crossed = next_generation(
-            [a.genome for a in agents], fitness, self._rng, cfg.genetics
+            [a.genome for a in agents], fitness, self._rng, cfg.genetics, self.selection_parents
         )
         previous = self.generation
         for was_crossed in crossed:

@@ -108,11 +108,6 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
         ),  # fmt: skip
         (["evolve", "--max-steps", "0", "--out", "{new}"], "--max-steps"),
         (
-            ["evolve", "--method", "ce", "--set", "learning.enabled=true", "--set",
-             "learning.inheritance=lamarckian", "--out", "{new}"],
-            "lamarckian needs method ee",
-        ),  # fmt: skip
-        (
             ["evolve", "--set", "reproduction.energy_full=0", "--out", "{new}"],
             "reproduction.energy_full must be a number in (0",
         ),

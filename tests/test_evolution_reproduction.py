@@ -180,3 +180,19 @@ def test_next_generation_crosses_and_mutates() -> None:
         next_generation(
             genomes, np.zeros(2), np.random.default_rng(0), GeneticConfig(tournament_size=3)
         )
+
+
+def test_next_generation_names_each_childs_first_parent() -> None:
+    """Without crossover or mutation every child is a copy of the parent it names; with
+    crossover the child starts with that parent's genes; the list draws nothing."""
+    genomes = [Genome(np.full(GENOME_LENGTH, float(i))) for i in range(7)]
+    fit = np.arange(7.0)
+    parents: list[int] = [99]
+    copies = GeneticConfig(crossover_probability=0.0, **NO_MUTATION)
+    new, _ = next_generation(genomes, fit, np.random.default_rng(4), copies, parents)
+    assert len(parents) == 7 and all(new[i] == genomes[p] for i, p in enumerate(parents))
+    again, _ = next_generation(genomes, fit, np.random.default_rng(4), copies)
+    assert again == new  # the same draws with or without the list
+    crossing = GeneticConfig(crossover_probability=1.0, **NO_MUTATION)
+    new, _ = next_generation(genomes, fit, np.random.default_rng(5), crossing, parents)
+    assert all(new[i].weights[0] == float(p) for i, p in enumerate(parents))

@@ -420,11 +420,32 @@ def test_bad_learning_settings(field: str, value: Any, message: str) -> None:
         LearningConfig(**{field: value})
 
 
-def test_lamarckian_inheritance_needs_embodied_evolution() -> None:
-    evo = EvolutionConfig(learning=LearningConfig(enabled=True, inheritance="lamarckian"))
-    with pytest.raises(ValueError, match="learning.inheritance: lamarckian needs method ee"):
-        RunConfig(method="ce", evolution=evo)
-    RunConfig(method="ce", evolution=EvolutionConfig(learning=LearningConfig(enabled=True)))
+@pytest.mark.parametrize("inheritance", ["lamarckian", "darwinian"])
+def test_lamarckian_ce_individuals_take_their_first_parents_values(inheritance: str) -> None:
+    """In the centralised GA every new individual starts from the values its first parent had
+    learned (``selection_parents``); Darwinian CE individuals start from ``init``."""
+    evo = EvolutionConfig(**SMALL, learning=LearningConfig(  # type: ignore[arg-type]
+        enabled=True, init="shipped", inheritance=inheritance))  # fmt: skip
+    with EvolutionRunner(RunConfig(method="ce", evolution=evo), 3) as runner:
+        learner, scheduler = runner.learning, runner.scheduler
+        assert learner is not None
+        load_births = learner.on_births
+        checked: list[bool] = []
+
+        def check(births: Any, genomes: Any, parents: Any) -> None:
+            before = learner.values.values.copy()
+            load_births(births, genomes, parents)
+            for table in range(8):
+                expected = (before[parents[table]] if inheritance == "lamarckian"
+                            else learner.initial_values)  # fmt: skip
+                checked.append(np.array_equal(learner.values.values[table], expected))
+            learned = [not np.array_equal(before[t], learner.initial_values) for t in parents]
+            assert any(learned)  # the parents had learned something to pass on
+
+        learner.on_births = check  # type: ignore[method-assign]
+        runner.run(1)
+        assert len(scheduler.selection_parents) == 8  # type: ignore[attr-defined]
+        assert len(checked) == 8 and all(checked)
 
 
 def test_a_range_must_not_be_upside_down() -> None:
@@ -486,10 +507,10 @@ def test_lamarckian_offspring_start_from_learned_values_in_a_run() -> None:
         load_births = learner.on_births
         seen: list[bool] = []
 
-        def check(births: Any, genomes: Any) -> None:
+        def check(births: Any, genomes: Any, parents: Any = ()) -> None:
             offspring = [robot * 2 + slot for _, robot, slot, _, origin in births if origin == 1]
             before = {table: learner.values.values[table].copy() for table in offspring}
-            load_births(births, genomes)
+            load_births(births, genomes, parents)
             for table, learned in before.items():
                 kept = np.array_equal(learner.values.values[table], learned)
                 seen.append(kept and not np.array_equal(learned, learner.initial_values))

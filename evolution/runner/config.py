@@ -93,12 +93,6 @@ class RunConfig:
                 f"world.n_robots ({self.world.n_robots}) must equal evolution.n_robots "
                 f"({evo.n_robots}): every physical robot carries one subpopulation"
             )
-        learning = evo.learning
-        if self.method == "ce" and learning.enabled and learning.inheritance == "lamarckian":
-            raise ValueError(
-                "learning.inheritance: lamarckian needs method ee (an offspring of the "
-                "centralised GA has no slot parent whose learned values it could take)"
-            )
         if not isinstance(self.camera, CameraConfig):
             raise ValueError(f"camera must be a CameraConfig, got {type(self.camera)!r}")
         if self.profile is not None:

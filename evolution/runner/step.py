@@ -297,7 +297,10 @@ class EvolutionRunner:
         self._load_switched(switched)
         if scheduler.birth_log:
             if learning is not None:  # newborns' parameters and values
-                learning.on_births(scheduler.birth_log, scheduler.newborn_genomes())
+                learning.on_births(
+                    scheduler.birth_log, scheduler.newborn_genomes(),
+                    getattr(scheduler, "selection_parents", ()),
+                )  # fmt: skip
             self._log_births()
         return self._close_generations()
 
