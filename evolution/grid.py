@@ -85,12 +85,19 @@ def grid_record(grid: Grid) -> dict[str, Any]:
 
 
 def read_grid(path: str | os.PathLike[str]) -> Grid | None:
-    """The grid of the sweep at ``path`` (None if it is not a grid sweep)."""
+    """The grid of the sweep at ``path`` (None if it is not a grid sweep).
+
+    Raises:
+        ValueError: ``grid.json`` is unreadable or not a grid record (the message names it).
+    """
     file = Path(path) / GRID_FILE
     if not file.exists():
         return None
-    record = json.loads(file.read_text())
-    return tuple((str(key), tuple(values)) for key, values in record["grid"])
+    try:
+        record = json.loads(file.read_text())
+        return tuple((str(key), tuple(values)) for key, values in record["grid"])
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise ValueError(f"{file}: not a grid record ({err})") from None
 
 
 def check_grid(path: str | os.PathLike[str], grid: Grid) -> None:

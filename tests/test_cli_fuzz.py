@@ -181,6 +181,7 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
         (["plot", "{empty}"], "no statistics.csv"),
         (["plot", "{notes}"], "no statistics.csv"),
         (["plot", "{empty}", "--out", "{file}"], "is a file"),
+        (["plot", "{bad_grid}"], "grid.json: not a grid record"),
     ],
     "render": [
         (["render"], "--out"),
@@ -266,6 +267,7 @@ def inputs(root: Path) -> dict[str, str]:
     """Prepare the inputs under ``root``; their paths by placeholder name."""
     paths = {name: root / name for name in (
         "empty", "notes", "started", "sweep", "alien_run", "list_run", "empty_record_run",
+        "bad_grid",
     )}  # fmt: skip
     for path in paths.values():
         path.mkdir()
@@ -279,6 +281,7 @@ def inputs(root: Path) -> dict[str, str]:
     (paths["alien_run"] / "run.json").write_text(json.dumps(record))
     (paths["list_run"] / "run.json").write_text("[]")
     (paths["empty_record_run"] / "run.json").write_text("{}")
+    (paths["bad_grid"] / "grid.json").write_text('{"grid": [["survival.mate_distance"')
     files = {
         "file": "a plain file",
         "bad_toml.toml": "population_size = = 3",
