@@ -191,6 +191,7 @@ class LifetimeLearning:
         self._bin_steps = float(config.fitness_time_unit)
         self.n_age_bins = max(1, math.ceil(config.lifetime_steps / self._bin_steps))
         self._generation = np.zeros(n_tables, dtype=np.int64)
+        self._died = np.zeros(n_tables, dtype=bool)
         self._batteries_by_age = np.zeros((n_tables, self.n_age_bins), dtype=np.int64)
         self._matings_by_age = np.zeros((n_tables, self.n_age_bins), dtype=np.int64)
         #: generation -> per-generation sums of the agents that lived their full lifetime.
@@ -212,6 +213,7 @@ class LifetimeLearning:
         if not inherit:
             v.values[table] = self.initial_values
         self._generation[table] = generation
+        self._died[table] = False
         self._batteries_by_age[table] = 0
         self._matings_by_age[table] = 0
 
@@ -233,8 +235,9 @@ class LifetimeLearning:
         its parent learned; a CE individual (origin 4) takes the values of its first parent,
         ``selection_parents[table]`` (:attr:`CentralisedEvolution.selection_parents`), as they
         were before the replacement. A newborn in a later generation than the table's agent
-        means that agent lived its full lifetime (a death leaves the slot's generation as it
-        was).
+        means that agent lived its full lifetime, unless it died (a CE agent that died waits
+        for the replacement of the whole population; an EE one is replaced at once, in its
+        generation).
         """
         lamarckian = self.learning.inheritance == "lamarckian"
         before = None
@@ -243,7 +246,7 @@ class LifetimeLearning:
         for (_, robot, slot, generation, origin), genome in zip(births, genomes, strict=True):
             table = robot * self.subpopulation_size + slot
             previous = int(self._generation[table])
-            if generation > previous:
+            if generation > previous and not self._died[table]:
                 self._record_life(table, previous)
             self.load_agent(table, genome, generation, inherit=lamarckian and origin == 1)
             if before is not None and origin == 4:
@@ -336,6 +339,8 @@ class LifetimeLearning:
         self._observe()
         if events.any:
             tables = self.step_buffers.table
+            for robot in np.flatnonzero(events.died & (tables >= 0)).tolist():
+                self._died[int(tables[robot])] = True
             bins = np.minimum(ages // self._bin_steps, self.n_age_bins - 1).astype(np.int64)
             for robot in np.flatnonzero((events.captured | mated) & (tables >= 0)).tolist():
                 table, age_bin = int(tables[robot]), int(bins[robot])
@@ -405,6 +410,7 @@ class LifetimeLearning:
             },  # fmt: skip
             "traces": traces,
             "generation": self._generation.copy(),
+            "died": self._died.copy(),
             "batteries_by_age": self._batteries_by_age.copy(),
             "matings_by_age": self._matings_by_age.copy(),
             "records": [
@@ -444,6 +450,7 @@ class LifetimeLearning:
             e.n_active[robot] = entries.size
             e.trace[robot, entries] = saved["values"]
         restore_array(self._generation, state["generation"], "learning generation")
+        restore_array(self._died, state["died"], "learning deaths")
         restore_array(self._batteries_by_age, state["batteries_by_age"], "learning batteries")
         restore_array(self._matings_by_age, state["matings_by_age"], "learning matings")
         self.records = {

@@ -442,7 +442,7 @@ def test_lamarckian_ce_individuals_take_their_first_parents_values(inheritance: 
             learned = [not np.array_equal(before[t], learner.initial_values) for t in parents]
             assert any(learned)  # the parents had learned something to pass on
 
-        learner.on_births = check  # type: ignore[method-assign]
+        learner.on_births = check  # type: ignore[method-assign, assignment]
         runner.run(1)
         assert len(scheduler.selection_parents) == 8  # type: ignore[attr-defined]
         assert len(checked) == 8 and all(checked)
@@ -480,6 +480,29 @@ def test_learning_run_learns_and_records_its_lives() -> None:
         assert {"batteries_age_0_100", "matings_age_0_100"} <= set(first)
 
 
+@pytest.mark.parametrize("method", ["ee", "ce"])
+def test_recorded_lives_are_the_full_lives_of_the_statistics(method: str) -> None:
+    """Every agent that lived its full lifetime is in the learning record once, and no agent
+    that died: CE's record equals the statistics' full lifetimes; EE's may count more, the
+    lives that lagging slots finish after their generation closed."""
+    # Lives of 80 steps on an energy of 40: agents that do not dock in time die.
+    lives = dict(SMALL, lifetime_steps=80, time_sharing_steps=40, initial_energy=40.0)
+    evo = EvolutionConfig(**lives, learning=LearningConfig(enabled=True, init="shipped"))  # type: ignore[arg-type]
+    with EvolutionRunner(RunConfig(method=method, evolution=evo), 5) as runner:
+        runner.run(4)
+        learner = runner.learning
+        assert learner is not None
+        statistics = runner.statistics()
+        deaths = int(statistics["deaths"].sum())
+        assert deaths > 0  # agents that learn from zero die: the rule is exercised
+        for row in statistics.itertuples():
+            recorded = int(learner.records.get(row.generation, {"lives": [0]})["lives"][0])
+            if method == "ce":
+                assert recorded == row.full_lifetimes
+            else:
+                assert recorded >= row.full_lifetimes
+
+
 @pytest.mark.parametrize("inheritance", ["darwinian", "lamarckian"])
 def test_inheritance_rule(inheritance: str) -> None:
     """Lamarckian: an offspring (origin 1) keeps its slot's values, those its parent learned;
@@ -515,7 +538,7 @@ def test_lamarckian_offspring_start_from_learned_values_in_a_run() -> None:
                 kept = np.array_equal(learner.values.values[table], learned)
                 seen.append(kept and not np.array_equal(learned, learner.initial_values))
 
-        learner.on_births = check  # type: ignore[method-assign]
+        learner.on_births = check  # type: ignore[method-assign, assignment]
         while len(seen) < 3 and runner.steps < 20_000:
             runner.step()
         assert len(seen) >= 3 and all(seen)
