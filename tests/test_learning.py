@@ -617,3 +617,30 @@ def test_deploy_refuses_a_learning_run(tmp_path: Path, capsys: pytest.CaptureFix
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 2 and len(err) == 1 and "is a learning-mode run" in err[0]
     assert not (tmp_path / "bundle").exists()
+
+
+@pytest.mark.parametrize("damage", ["missing", "corrupt"])
+def test_shipped_values_missing_or_corrupt_is_one_line(
+    damage: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    """``learning.init = shipped`` needs the shipped values: without them, or with a damaged
+    file, the run stops in one line before anything is written."""
+    import shutil
+
+    from behaviours.definitions import VALUES_DIR_ENV_VAR, default_values_dir
+    from cyber_rodent.cli import main
+
+    values = tmp_path / "values"
+    values.mkdir()
+    if damage == "corrupt":
+        for name in ("mate", "forage", "search"):
+            shutil.copy(default_values_dir() / f"{name}.npz", values)
+        (values / "forage.npz").write_bytes(b"junk")
+    monkeypatch.setenv(VALUES_DIR_ENV_VAR, str(values))
+    out = tmp_path / "run"
+    status = main(["evolve", "--set", "learning.enabled=true", "--set", "learning.init=shipped",
+                   "--out", str(out)])  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1 and not out.exists()
+    assert ("not found" if damage == "missing" else "cannot read action values") in err[0]
