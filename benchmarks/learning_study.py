@@ -22,8 +22,9 @@ learning records, ``run.json``: :mod:`benchmarks.publish_runs`) and draws from t
 
 * ``results/learning/modes.csv``: per mode, the runs, generations closed, events per 1,000
   control steps (dockings, matings, deaths: comparable whether or not generations closed),
-  batteries and matings over :data:`WINDOW` (mean ± sample std over runs) and the two-sided
-  Mann-Whitney p-value and rank-biserial effect of each mode against ``fixed``;
+  batteries and matings over :data:`WINDOW` (or the last generations every run of the mode
+  reached; column ``window``), mean ± sample std over runs, and, against ``fixed`` over the
+  same generations, its mean, the two-sided Mann-Whitney p-value and the rank-biserial effect;
 * ``results/learning/meta.csv`` and ``lifetime.csv``: the evolved learning parameters per
   generation and the within-life curves (:mod:`evolution.learning_figures`);
 * ``results/learning/variants.csv``: the two variants against the default, seed 0;
@@ -47,7 +48,7 @@ import pandas as pd
 
 from benchmarks.publish_runs import publish
 from cyber_rodent.atomic import atomic_output
-from evolution.comparison import compare_methods, run_means
+from evolution.comparison import available_window, compare_methods, run_means
 from evolution.figures import aggregate_runs, save_figure, styled_pyplot
 from evolution.learning_figures import (
     lifetime_table,
@@ -120,8 +121,10 @@ def publish_all() -> list[str]:
             continue
         cells = [p for p in root.iterdir() if p.is_dir() and "=" in p.name] or [root]
         for cell in cells:
-            target = RESULTS / sweep / (cell.name if cell != root else "")
-            copied += [f"{sweep}/{name}" for name in publish(cell, target)]
+            where = cell.name if cell != root else ""
+            target = RESULTS / sweep / where
+            copied += [f"{sweep}/{where + '/' if where else ''}{name}"
+                       for name in publish(cell, target)]  # fmt: skip
     return copied
 
 
@@ -180,12 +183,19 @@ def modes_table() -> pd.DataFrame:
         for name, (mean, std) in _events_per_thousand(runs).items():
             row[f"{name}_per_1000_steps_mean"] = mean
             row[f"{name}_per_1000_steps_std"] = std
+        # The window, or the last generations every run of the mode reached (then the fixed
+        # behaviours are compared over the same generations).
+        window = available_window([t for t in tables if len(t)], WINDOW)
+        row["window"] = "" if window is None else f"{window[0]}-{window[1]}"
         for quantity, column in (("batteries", "batteries_mean"), ("matings", "matings_mean")):
-            mean, std = _mean_std(list(run_means(tables, column, *WINDOW)))
-            row[f"{quantity}_{WINDOW[0]}_{WINDOW[1]}_mean"] = mean
-            row[f"{quantity}_{WINDOW[0]}_{WINDOW[1]}_std"] = std
+            if window is None:
+                continue
+            mean, std = _mean_std(list(run_means(tables, column, *window)))
+            row[f"{quantity}_mean"] = mean
+            row[f"{quantity}_std"] = std
             if label != "fixed" and fixed:
-                test = compare_methods(tables, fixed, column, WINDOW)
+                test = compare_methods(tables, fixed, column, window)
+                row[f"{quantity}_fixed_mean"] = test.ce_mean
                 row[f"{quantity}_p_vs_fixed"] = test.p_value
                 row[f"{quantity}_rank_biserial_vs_fixed"] = test.rank_biserial
         rows.append(row)
