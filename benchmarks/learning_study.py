@@ -221,15 +221,33 @@ def variants_table() -> pd.DataFrame:
 
 
 def plot_curves(
-    groups: Mapping[str, Sequence[pd.DataFrame]], out_base: Path, title: str
+    groups: Mapping[str, Sequence[pd.DataFrame]],
+    rates: Mapping[str, Mapping[str, tuple[float, float]]],
+    out_base: Path,
+    title: str,
 ) -> list[Path]:
-    """Batteries and matings per generation, mean ± std over runs, one line per group."""
+    """Batteries and matings per generation, mean ± std over runs, one line per group; and
+    each group's dockings, matings and deaths per 1,000 control steps (equal robot time)."""
     plt = styled_pyplot()
     palette = ["#555555", "#1f4fd1", "#2a9d3a", "#d1261f", "#e08a00"]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.4), gridspec_kw={"width_ratios": [1, 1, 1.1]})
+    bars = axes[2]
+    kinds = ("dockings", "matings", "deaths")
+    width = 0.8 / max(1, len(groups))
+    for g, (colour, label) in enumerate(zip(palette, groups, strict=False)):
+        if label not in rates:
+            continue
+        means = [rates[label][kind][0] for kind in kinds]
+        stds = [rates[label][kind][1] for kind in kinds]
+        x = np.arange(len(kinds)) + (g - (len(groups) - 1) / 2) * width
+        bars.bar(x, means, width, yerr=np.nan_to_num(stds), color=colour, capsize=2)
+    bars.set_xticks(np.arange(len(kinds)), kinds)
+    bars.set_ylabel("per 1,000 control steps (all agents)")
+    bars.grid(alpha=0.3, axis="y")
     for ax, (column, name) in zip(
-        axes, (("batteries_mean", "batteries captured"), ("matings_mean", "matings")), strict=True
-    ):
+        axes[:2], (("batteries_mean", "batteries captured"), ("matings_mean", "matings")),
+        strict=True,
+    ):  # fmt: skip
         for colour, (label, tables) in zip(palette, groups.items(), strict=False):
             tables = [t for t in tables if len(t)]
             if not tables:
@@ -272,17 +290,21 @@ def publish_results() -> list[Path]:
     written += plot_meta_parameters(meta, IMAGES / "learning_meta")
     written += plot_lifetime(lifetime, IMAGES / "learning_lifetime")
     groups = {label: _statistics(run_dirs(sweep, cell)) for label, (sweep, cell) in MODES.items()}
+    rates = {label: _events_per_thousand(run_dirs(sweep, cell))
+             for label, (sweep, cell) in MODES.items() if run_dirs(sweep, cell)}  # fmt: skip
     written += plot_curves(
-        groups, IMAGES / "learning_modes",
+        groups, rates, IMAGES / "learning_modes",
         f"EE with fixed and learned behaviours ({GENERATIONS} generations or "
         f"{MAX_STEPS:,} control steps; mean ± std over seeds)",
     )  # fmt: skip
     variants = variants_table()
     if len(variants):
         written.append(_write_csv(variants, RESULTS / "variants.csv"))
+        runs = {label: run_dirs(sweep, cell, [seed])
+                for label, (sweep, cell, seed) in VARIANTS.items()}  # fmt: skip
         written += plot_curves(
-            {label: _statistics(run_dirs(sweep, cell, [seed]))
-             for label, (sweep, cell, seed) in VARIANTS.items()},
+            {label: _statistics(found) for label, found in runs.items()},
+            {label: _events_per_thousand(found) for label, found in runs.items() if found},
             IMAGES / "learning_variants",
             "Variants from the Cyber Rodent literature against the default (EE, seed 0)",
         )  # fmt: skip
