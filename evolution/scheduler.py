@@ -201,6 +201,10 @@ class TimeSharingScheduler:
         self.steps = 0
         self.birth_log: list[tuple[int, int, int, int, int]] = []
         self.completed_lives: dict[int, list[LifeRecord]] = {}
+        #: CE: per new individual of the last generational replacement (robot-major), the index
+        #: (robot-major) of its first parent in the population before it (``next_generation``);
+        #: what Lamarckian learning inherits from. EE leaves it empty.
+        self.selection_parents: list[int] = []
 
         self.active_slot = np.zeros(n, dtype=np.intp)
         self.active = np.ones(n, dtype=bool)
@@ -644,9 +648,6 @@ class CentralisedEvolution(TimeSharingScheduler):
         super().__init__(config, rng, initial_genomes, backend)
         self.generation = 0
         self.finished = np.zeros((self.n_robots, self.subpopulation_size), dtype=bool)
-        #: Per new individual of the last generational replacement (robot-major), the index
-        #: (robot-major) of its first parent in the population before it (``next_generation``).
-        self.selection_parents: list[int] = []
 
     def completed_generations(self) -> int:
         """Generations the whole population has completed."""

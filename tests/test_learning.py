@@ -444,7 +444,7 @@ def test_lamarckian_ce_individuals_take_their_first_parents_values(inheritance: 
 
         learner.on_births = check  # type: ignore[method-assign, assignment]
         runner.run(1)
-        assert len(scheduler.selection_parents) == 8  # type: ignore[attr-defined]
+        assert len(scheduler.selection_parents) == 8
         assert len(checked) == 8 and all(checked)
 
 

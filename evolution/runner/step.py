@@ -298,9 +298,8 @@ class EvolutionRunner:
         if scheduler.birth_log:
             if learning is not None:  # newborns' parameters and values
                 learning.on_births(
-                    scheduler.birth_log, scheduler.newborn_genomes(),
-                    getattr(scheduler, "selection_parents", ()),
-                )  # fmt: skip
+                    scheduler.birth_log, scheduler.newborn_genomes(), scheduler.selection_parents
+                )
             self._log_births()
         return self._close_generations()
 
