@@ -10,7 +10,9 @@ behaviours slower and one robot weaker. :func:`transfer` does the same in simula
    that every generation's checkpoint is kept);
 2. rank the agents that lived the full lifetime in the last generation that closed (the
    checkpoint ``gen_00040`` is written when generation index 39, the 40th, closes) by the
-   paper's fitness over their whole life, batteries / (lifetime / 100), and take the ``top``.
+   paper's fitness over their whole life, batteries / (lifetime / 100), agents that mated
+   first (the paper's fitness exists only at a mating: an agent that never mated scores 0),
+   and take the ``top``.
    Those agents have already been replaced by their offspring, so the scheduler keeps their
    records (:attr:`~evolution.scheduler.TimeSharingScheduler.completed_lives`); a checkpoint
    from before that record existed falls back to the living agents, mated ones first;
@@ -144,8 +146,10 @@ def fittest_individuals(
     """The ``top`` fittest individuals of ``generation``, or of the living population.
 
     With ``generation``, the agents that completed their lifetime in it are ranked by the
-    paper's fitness over their whole life (ties: more matings first, then the order in which
-    the lives ended). This is what "the fittest individuals of generation 40" means: when a
+    paper's fitness over their whole life, agents that mated first (ties: more matings first,
+    then the order in which the lives ended). The paper computes fitness at a mating and scores
+    an agent that never mated 0 (its Fig. 7), so a forager that never mated, however many
+    batteries it captured, ranks below every agent that did. This is what "the fittest individuals of generation 40" means: when a
     generation closes, most of its agents have already been replaced by their newborn
     offspring, whose records are still empty. The scheduler keeps the lives of its newest
     generations (:attr:`~evolution.scheduler.TimeSharingScheduler.completed_lives`).
@@ -160,7 +164,10 @@ def fittest_individuals(
     top = check_integer("top", top, 1)
     lives = scheduler.lives_of(generation) if generation is not None else []
     if lives:
-        order = sorted(range(len(lives)), key=lambda i: (-lives[i].fitness, -lives[i].matings, i))
+        order = sorted(
+            range(len(lives)),
+            key=lambda i: (lives[i].matings == 0, -lives[i].fitness, -lives[i].matings, i),
+        )
         candidates = [
             Individual(life.genome, life.fitness, life.matings > 0, life.robot, life.slot)
             for life in (lives[i] for i in order)

@@ -94,12 +94,13 @@ def test_fittest_individuals_of_a_generation_rank_its_completed_lives() -> None:
     step()
     step()
     # Fitness over 4-step lives: robot 1 slot 0: 2 / 0.04 = 50; robot 0 slot 0: 25;
-    # robot 0 slot 1: 25 with one mating (wins the tie); robot 1 slot 1: 0.
-    chosen = fittest_individuals(scheduler, 3, generation=0)
-    assert [(c.robot, c.slot) for c in chosen] == [(1, 0), (0, 1), (0, 0)]
-    assert [c.fitness for c in chosen] == [50.0, 25.0, 25.0]
-    assert [c.mated for c in chosen] == [False, True, False]
-    assert chosen[0].genome == genomes[2]  # robot-major: robot 1, slot 0
+    # robot 0 slot 1: 25 with one mating; robot 1 slot 1: 0 with one mating. Agents that mated
+    # come first (the paper's fitness of an unmated agent is 0), then the rest by fitness.
+    chosen = fittest_individuals(scheduler, 4, generation=0)
+    assert [(c.robot, c.slot) for c in chosen] == [(0, 1), (1, 1), (1, 0), (0, 0)]
+    assert [c.fitness for c in chosen] == [25.0, 0.0, 50.0, 25.0]
+    assert [c.mated for c in chosen] == [True, True, False, False]
+    assert chosen[2].genome == genomes[2]  # robot-major: robot 1, slot 0
     # The living agents are the newborns; without a generation they are what is ranked.
     assert all(c.fitness == 0.0 for c in fittest_individuals(scheduler, 4))
     with pytest.raises(ValueError, match=r"top must be in \[1, 4\] \(completed lives"):
