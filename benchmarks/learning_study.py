@@ -27,6 +27,12 @@ learning records, ``run.json``: :mod:`benchmarks.publish_runs`) and draws from t
   same generations, its mean, the two-sided Mann-Whitney p-value and the rank-biserial effect;
 * ``results/learning/meta.csv`` and ``lifetime.csv``: the evolved learning parameters per
   generation and the within-life curves (:mod:`evolution.learning_figures`);
+* ``results/learning/inheritance.csv``: Lamarckian against Darwinian inheritance for each
+  initial value, on the early generations (:data:`EARLY_WINDOW`) and on the generations a run
+  needs to reach :data:`THRESHOLD_SHARE` of the fixed behaviours' batteries over
+  :data:`WINDOW` (:func:`inheritance_table`);
+* ``results/learning/meta_convergence.csv``: where each evolved learning parameter started and
+  ended, and whether it settled (:func:`meta_convergence`);
 * ``results/learning/variants.csv``: the two variants against the default, seed 0;
 * ``docs/images/learning_modes.png``, ``learning_meta.png``, ``learning_lifetime.png``,
   ``learning_variants.png``.
@@ -51,6 +57,7 @@ from cyber_rodent.atomic import atomic_output
 from evolution.comparison import available_window, compare_methods, run_means
 from evolution.figures import aggregate_runs, save_figure, styled_pyplot
 from evolution.learning_figures import (
+    META_LABELS,
     lifetime_table,
     load_learning,
     meta_table,
@@ -70,6 +77,12 @@ MAX_STEPS = 1_000_000
 REACTIVATION_STEPS = 100
 #: Generations each run's batteries and matings are averaged over.
 WINDOW = (50, 59)
+#: Early generations, where a faster evolution shows first.
+EARLY_WINDOW = (10, 19)
+#: Share of the fixed behaviours' batteries over :data:`WINDOW` whose first reaching is timed.
+THRESHOLD_SHARE = 0.9
+#: Generations in the trailing mean whose first reaching of the threshold is timed.
+SMOOTHING = 5
 #: The modes, in table order: label -> (sweep, cell).
 MODES = {
     "fixed": ("fixed", ""),
@@ -202,6 +215,108 @@ def modes_table() -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def generations_to_reach(table: pd.DataFrame, level: float, smoothing: int = SMOOTHING) -> float:
+    """The first generation at which the trailing ``smoothing``-generation mean of a run's
+    batteries per life reaches ``level``; the run's generation count if it never does (a
+    censored value that ranks it slowest), NaN for a run that closed none."""
+    if not len(table):
+        return math.nan
+    trailing = table["batteries_mean"].rolling(smoothing, min_periods=smoothing).mean()
+    reached = table["generation"][trailing >= level]
+    return float(reached.iloc[0]) if len(reached) else float(len(table))
+
+
+def _compare(darwinian: Sequence[float], lamarckian: Sequence[float]) -> dict[str, float]:
+    """Means, sample stds, two-sided Mann-Whitney p and rank-biserial effect (positive when
+    Lamarckian is higher) of two samples of per-run values."""
+    from scipy.stats import mannwhitneyu
+
+    d = np.array([v for v in darwinian if math.isfinite(v)], dtype=float)
+    lam = np.array([v for v in lamarckian if math.isfinite(v)], dtype=float)
+    out = {"darwinian_runs": float(len(d)), "lamarckian_runs": float(len(lam))}
+    for name, values in (("darwinian", d), ("lamarckian", lam)):
+        out[f"{name}_mean"], out[f"{name}_std"] = _mean_std(list(values))
+    out["p_value"] = out["rank_biserial"] = math.nan
+    if len(d) and len(lam):
+        result = mannwhitneyu(lam, d, alternative="two-sided")
+        out["p_value"] = float(result.pvalue)
+        out["rank_biserial"] = 2.0 * float(result.statistic) / (len(d) * len(lam)) - 1.0
+    return out
+
+
+def inheritance_table(
+    groups: Mapping[str, Sequence[pd.DataFrame]], fixed: Sequence[pd.DataFrame]
+) -> pd.DataFrame:
+    """Lamarckian against Darwinian inheritance, for each initial value with runs of both.
+
+    Rows per init: batteries and matings over :data:`EARLY_WINDOW`, each run's mean; and the
+    generations to reach :data:`THRESHOLD_SHARE` of the fixed behaviours' mean batteries over
+    :data:`WINDOW` (:func:`generations_to_reach`). Lamarckian evolution is faster if its early
+    values are higher and its generations to the threshold fewer.
+
+    Args:
+        groups: statistics tables by mode label (``"shipped, Darwinian"``, ...).
+        fixed: the fixed behaviours' statistics tables, which set the threshold.
+    """
+    fixed_means = list(run_means(fixed, "batteries_mean", *WINDOW)) if fixed else []
+    level = THRESHOLD_SHARE * _mean_std(fixed_means)[0]
+    rows = []
+    for init in ("shipped", "zero"):
+        darwinian = [t for t in groups.get(f"{init}, Darwinian", ()) if len(t)]
+        lamarckian = [t for t in groups.get(f"{init}, Lamarckian", ()) if len(t)]
+        if not darwinian or not lamarckian:
+            continue
+        window = available_window(darwinian + lamarckian, EARLY_WINDOW)
+        measures: list[tuple[str, list[float], list[float]]] = []
+        if window is not None:
+            for quantity, column in (("batteries", "batteries_mean"), ("matings", "matings_mean")):
+                measures.append((
+                    f"{quantity} {window[0]}-{window[1]}",
+                    list(run_means(darwinian, column, *window)),
+                    list(run_means(lamarckian, column, *window)),
+                ))  # fmt: skip
+        if math.isfinite(level):
+            measures.append((
+                f"generations to {THRESHOLD_SHARE:.0%} of fixed ({level:.2f} batteries)",
+                [generations_to_reach(t, level) for t in darwinian],
+                [generations_to_reach(t, level) for t in lamarckian],
+            ))  # fmt: skip
+        for measure, d_values, l_values in measures:
+            rows.append({"init": init, "measure": measure, **_compare(d_values, l_values)})
+    return pd.DataFrame(rows)
+
+
+def _span_mean(table: pd.DataFrame, first: int, last: int, column: str) -> float:
+    """The mean of ``column`` over generations ``first..last``; NaN if there are none."""
+    values = table.loc[table["generation"].between(first, last), column]
+    return float(values.mean()) if len(values) else math.nan
+
+
+def meta_convergence(meta: pd.DataFrame) -> pd.DataFrame:
+    """Per mode and learning parameter: the population mean (mean over runs) over generations
+    0-9, 40-49 and 50-59, the std of the run means and the within-population std over 50-59,
+    and ``settled``: the mean moved by less than the between-run std from 40-49 to 50-59 (a
+    stated rule; NaN where a mode lacks those generations)."""
+    rows = []
+    for label, table in meta.groupby("label", sort=False):
+        for name in META_LABELS:
+            start, middle, end = (
+                _span_mean(table, first, last, f"{name}_mean")
+                for first, last in ((0, 9), (40, 49), (50, 59))
+            )
+            between = _span_mean(table, 50, 59, f"{name}_between_runs")
+            settled: object = math.nan
+            if all(math.isfinite(v) for v in (middle, end, between)):
+                settled = bool(abs(end - middle) < between)
+            rows.append({
+                "label": label, "parameter": name, "mean_0_9": start, "mean_40_49": middle,
+                "mean_50_59": end, "between_runs_50_59": between,
+                "within_population_50_59": _span_mean(table, 50, 59, f"{name}_within"),
+                "settled": settled,
+            })  # fmt: skip
+    return pd.DataFrame(rows)
+
+
 def variants_table() -> pd.DataFrame:
     rows = []
     for label, (sweep, cell, seed) in VARIANTS.items():
@@ -286,10 +401,14 @@ def publish_results() -> list[Path]:
     }
     meta, lifetime = meta_table(learning), lifetime_table(learning)
     written.append(_write_csv(meta, RESULTS / "meta.csv"))
+    written.append(_write_csv(meta_convergence(meta), RESULTS / "meta_convergence.csv"))
     written.append(_write_csv(lifetime, RESULTS / "lifetime.csv"))
     written += plot_meta_parameters(meta, IMAGES / "learning_meta")
     written += plot_lifetime(lifetime, IMAGES / "learning_lifetime")
     groups = {label: _statistics(run_dirs(sweep, cell)) for label, (sweep, cell) in MODES.items()}
+    inheritance = inheritance_table(groups, groups["fixed"])
+    if len(inheritance):
+        written.append(_write_csv(inheritance, RESULTS / "inheritance.csv"))
     rates = {label: _events_per_thousand(run_dirs(sweep, cell))
              for label, (sweep, cell) in MODES.items() if run_dirs(sweep, cell)}  # fmt: skip
     written += plot_curves(
