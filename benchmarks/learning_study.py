@@ -15,7 +15,12 @@ after the robot time of about 80 of theirs):
   (darwinian, lamarckian), seeds 0-4;
 * ``energy_dependent`` and ``pack_reactivation``: one variant each against the fixed default,
   seed 0 (``reproduction.energy_dependent``; ``world.pack_reactivation_steps`` =
-  :data:`REACTIVATION_STEPS`).
+  :data:`REACTIVATION_STEPS`);
+* ``frozen``: the within-life baseline, seeds 0-4: learning mode from the shipped values with
+  its learning switched off (:data:`FROZEN`: α of 1e-9, ε of 0, so every agent acts greedily on
+  the shipped values, as the fixed behaviours do). Fixed runs keep no record by age; this one
+  does, so the within-life curves of the learners have a curve without learning to stand
+  beside.
 
 ``--publish`` copies the finished runs' tables to ``results/learning/`` (statistics,
 learning records, ``run.json``: :mod:`benchmarks.publish_runs`) and draws from them:
@@ -77,6 +82,13 @@ MAX_STEPS = 1_000_000
 REACTIVATION_STEPS = 100
 #: Generations each run's batteries and matings are averaged over.
 WINDOW = (50, 59)
+#: Learning mode with learning switched off: the within-life baseline.
+FROZEN = (
+    "learning.enabled=true", "learning.init=shipped", "learning.alpha_low=1e-9",
+    "learning.alpha_high=1e-9", "learning.epsilon_low=0", "learning.epsilon_high=0",
+)  # fmt: skip
+#: Its label in the within-life table and figure.
+FROZEN_LABEL = "shipped, learning off"
 #: Early generations, where a faster evolution shows first.
 EARLY_WINDOW = (10, 19)
 #: Share of the fixed behaviours' batteries over :data:`WINDOW` whose first reaching is timed.
@@ -111,6 +123,8 @@ def sweep_commands(workers: int) -> list[tuple[str, list[str]]]:
                               "--set", "reproduction.energy_dependent=true"]),
         ("pack_reactivation", ["sweep", "--seeds", "0", *common,
                                "--set", f"world.pack_reactivation_steps={REACTIVATION_STEPS}"]),
+        ("frozen", ["sweep", "--seeds", SEEDS, *common,
+                    *(item for setting in FROZEN for item in ("--set", setting))]),
     ]  # fmt: skip
 
 
@@ -128,7 +142,7 @@ def run_sweeps(workers: int) -> None:
 def publish_all() -> list[str]:
     """Copy every finished run's tables into ``results/learning`` (same layout as the runs)."""
     copied = []
-    for sweep in ("fixed", "modes", "energy_dependent", "pack_reactivation"):
+    for sweep in ("fixed", "modes", "energy_dependent", "pack_reactivation", "frozen"):
         root = RUNS / sweep
         if not root.is_dir():
             continue
@@ -399,7 +413,9 @@ def publish_results() -> list[Path]:
         for label, (sweep, cell) in MODES.items()
         if label != "fixed"
     }
-    meta, lifetime = meta_table(learning), lifetime_table(learning)
+    meta = meta_table(learning)
+    lifetime = lifetime_table({**learning, FROZEN_LABEL: [
+        t for run in run_dirs("frozen", "") for t in load_learning(run)]})  # fmt: skip
     written.append(_write_csv(meta, RESULTS / "meta.csv"))
     written.append(_write_csv(meta_convergence(meta), RESULTS / "meta_convergence.csv"))
     written.append(_write_csv(lifetime, RESULTS / "lifetime.csv"))
