@@ -152,7 +152,8 @@ def fittest_individuals(
     batteries it captured, ranks below every agent that did. The lives, not the living agents,
     are what "the fittest individuals of generation 40" means: when a generation closes, most
     of its agents have already been replaced by their newborn offspring, whose records are
-    still empty. The scheduler keeps the lives of its newest generations (:attr:`~evolution.scheduler.TimeSharingScheduler.completed_lives`).
+    still empty. The scheduler keeps the lives of its newest generations
+    (:attr:`~evolution.scheduler.TimeSharingScheduler.completed_lives`).
 
     Without ``generation`` (or for a generation of which no full life is recorded), every
     living agent is ranked by its record so far, agents that have mated first; ties keep the
