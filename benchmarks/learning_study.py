@@ -59,7 +59,7 @@ import pandas as pd
 
 from benchmarks.publish_runs import publish
 from cyber_rodent.atomic import atomic_output
-from evolution.comparison import available_window, compare_methods, run_means
+from evolution.comparison import available_window, compare_methods, rank_test, run_means
 from evolution.figures import aggregate_runs, save_figure, styled_pyplot
 from evolution.learning_figures import (
     META_LABELS,
@@ -241,20 +241,15 @@ def generations_to_reach(table: pd.DataFrame, level: float, smoothing: int = SMO
 
 
 def _compare(darwinian: Sequence[float], lamarckian: Sequence[float]) -> dict[str, float]:
-    """Means, sample stds, two-sided Mann-Whitney p and rank-biserial effect (positive when
-    Lamarckian is higher) of two samples of per-run values."""
-    from scipy.stats import mannwhitneyu
-
+    """Means, sample stds, two-sided Mann-Whitney p (:func:`evolution.comparison.rank_test`) and
+    rank-biserial effect (positive when Lamarckian is higher) of two samples of per-run values."""
     d = np.array([v for v in darwinian if math.isfinite(v)], dtype=float)
     lam = np.array([v for v in lamarckian if math.isfinite(v)], dtype=float)
     out = {"darwinian_runs": float(len(d)), "lamarckian_runs": float(len(lam))}
     for name, values in (("darwinian", d), ("lamarckian", lam)):
         out[f"{name}_mean"], out[f"{name}_std"] = _mean_std(list(values))
-    out["p_value"] = out["rank_biserial"] = math.nan
-    if len(d) and len(lam):
-        result = mannwhitneyu(lam, d, alternative="two-sided")
-        out["p_value"] = float(result.pvalue)
-        out["rank_biserial"] = 2.0 * float(result.statistic) / (len(d) * len(lam)) - 1.0
+    u, out["p_value"], _ = rank_test(lam, d)
+    out["rank_biserial"] = 2.0 * u / (len(d) * len(lam)) - 1.0 if len(d) and len(lam) else math.nan
     return out
 
 
