@@ -103,6 +103,16 @@ MODES = {
     "zero, Darwinian": ("modes", "init=zero,inheritance=darwinian"),
     "zero, Lamarckian": ("modes", "init=zero,inheritance=lamarckian"),
 }
+#: One colour per mode in every figure of the study; the learning-off baseline shares the fixed
+#: behaviours' grey, since it acts as they do.
+COLOURS = {
+    "fixed": "#555555",
+    "shipped, Darwinian": "#1f4fd1",
+    "shipped, Lamarckian": "#d1261f",
+    "zero, Darwinian": "#2a9d3a",
+    "zero, Lamarckian": "#e08a00",
+    FROZEN_LABEL: "#555555",
+}
 VARIANTS = {
     "default": ("fixed", "", 0),
     "energy-dependent reproduction": ("energy_dependent", "", 0),
@@ -349,11 +359,15 @@ def plot_curves(
     rates: Mapping[str, Mapping[str, tuple[float, float]]],
     out_base: Path,
     title: str,
+    colours: Mapping[str, str] | None = None,
 ) -> list[Path]:
     """Batteries and matings per generation, mean ± std over runs, one line per group; and
-    each group's dockings, matings and deaths per 1,000 control steps (equal robot time)."""
+    each group's dockings, matings and deaths per 1,000 control steps (equal robot time).
+    ``colours`` names each group's colour (default: a fixed palette in group order)."""
     plt = styled_pyplot()
-    palette = ["#555555", "#1f4fd1", "#2a9d3a", "#d1261f", "#e08a00"]
+    default = ["#555555", "#1f4fd1", "#2a9d3a", "#d1261f", "#e08a00"]
+    palette = [(colours or {}).get(label, default[g % len(default)])
+               for g, label in enumerate(groups)]  # fmt: skip
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.4), gridspec_kw={"width_ratios": [1, 1, 1.1]})
     bars = axes[2]
     kinds = ("dockings", "matings", "deaths")
@@ -414,8 +428,8 @@ def publish_results() -> list[Path]:
     written.append(_write_csv(meta, RESULTS / "meta.csv"))
     written.append(_write_csv(meta_convergence(meta), RESULTS / "meta_convergence.csv"))
     written.append(_write_csv(lifetime, RESULTS / "lifetime.csv"))
-    written += plot_meta_parameters(meta, IMAGES / "learning_meta")
-    written += plot_lifetime(lifetime, IMAGES / "learning_lifetime")
+    written += plot_meta_parameters(meta, IMAGES / "learning_meta", COLOURS)
+    written += plot_lifetime(lifetime, IMAGES / "learning_lifetime", COLOURS)
     groups = {label: _statistics(run_dirs(sweep, cell)) for label, (sweep, cell) in MODES.items()}
     inheritance = inheritance_table(groups, groups["fixed"])
     if len(inheritance):
@@ -425,7 +439,7 @@ def publish_results() -> list[Path]:
     written += plot_curves(
         groups, rates, IMAGES / "learning_modes",
         f"EE with fixed and learned behaviours ({GENERATIONS} generations or "
-        f"{MAX_STEPS:,} control steps; mean ± std over seeds)",
+        f"{MAX_STEPS:,} control steps; mean ± std over seeds)", COLOURS,
     )  # fmt: skip
     variants = variants_table()
     if len(variants):

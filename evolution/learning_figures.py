@@ -136,16 +136,24 @@ def lifetime_table(groups: Mapping[str, Sequence[pd.DataFrame]]) -> pd.DataFrame
     return pd.DataFrame(rows)
 
 
-def _colours(labels: Sequence[str]) -> dict[str, str]:
+def _colours(labels: Sequence[str], given: Mapping[str, str] | None = None) -> dict[str, str]:
+    """One colour per label: ``given`` where it names the label (so a study's figures agree),
+    else the next of a fixed palette."""
     palette = ["#1f4fd1", "#d1261f", "#2a9d3a", "#9b36c9", "#e08a00", "#555555", "#00a0b0"]
-    return {label: palette[i % len(palette)] for i, label in enumerate(labels)}
+    chosen = dict(given or {})
+    spare = iter(c for c in palette if c not in chosen.values())
+    return {label: chosen[label] if label in chosen else next(spare, "#000000")
+            for label in labels}  # fmt: skip
 
 
-def plot_meta_parameters(table: pd.DataFrame, out_base: str | Path) -> list[Path]:
-    """The four learning parameters over generations (see the module docstring)."""
+def plot_meta_parameters(
+    table: pd.DataFrame, out_base: str | Path, colours: Mapping[str, str] | None = None
+) -> list[Path]:
+    """The four learning parameters over generations (see the module docstring); ``colours``
+    fixes a label's colour."""
     plt = styled_pyplot()
     labels = list(dict.fromkeys(table["label"]))
-    colours = _colours(labels)
+    colours = _colours(labels, colours)
     fig, axes = plt.subplots(2, 2, figsize=(10, 6.4), sharex=True)
     for ax, (name, title) in zip(axes.flat, META_LABELS.items(), strict=True):
         for label in labels:
@@ -167,11 +175,14 @@ def plot_meta_parameters(table: pd.DataFrame, out_base: str | Path) -> list[Path
     return paths
 
 
-def plot_lifetime(table: pd.DataFrame, out_base: str | Path) -> list[Path]:
-    """Within-life curves, early (dashed) and late (solid) generations, per label."""
+def plot_lifetime(
+    table: pd.DataFrame, out_base: str | Path, colours: Mapping[str, str] | None = None
+) -> list[Path]:
+    """Within-life curves, early (dashed) and late (solid) generations, per label; ``colours``
+    fixes a label's colour."""
     plt = styled_pyplot()
     labels = list(dict.fromkeys(table["label"]))
-    colours = _colours(labels)
+    colours = _colours(labels, colours)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, quantity in zip(axes, ("batteries", "matings"), strict=True):
         for label in labels:
