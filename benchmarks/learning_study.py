@@ -39,6 +39,9 @@ learning records, ``run.json``: :mod:`benchmarks.publish_runs`) and draws from t
 * ``results/learning/meta_convergence.csv``: where each evolved learning parameter started and
   ended, and whether it settled (:func:`meta_convergence`);
 * ``results/learning/variants.csv``: the two variants against the default, seed 0;
+* ``results/learning/drift.csv`` (from each run's newest checkpoint, while ``runs/`` holds it):
+  how far the learned values of the colony's 100 agents have moved from their initial values
+  (:func:`table_drift`);
 * ``docs/images/learning_modes.png``, ``learning_meta.png``, ``learning_lifetime.png``,
   ``learning_variants.png``.
 """
@@ -57,8 +60,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from behaviours.policies import BehaviourPolicies
 from benchmarks.publish_runs import publish
 from cyber_rodent.atomic import atomic_output
+from evolution.checkpoint import load_checkpoint
 from evolution.comparison import available_window, compare_methods, rank_test, run_means
 from evolution.figures import aggregate_runs, save_figure, styled_pyplot
 from evolution.learning_figures import (
@@ -336,6 +341,51 @@ def meta_convergence(meta: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def table_drift(
+    changed_rows: np.ndarray, changed_values: np.ndarray, initial: np.ndarray, n_tables: int
+) -> dict[str, float]:
+    """How far learned values have moved from a newborn's initial values.
+
+    A checkpoint stores only the rows of the stacked tables that differ from the initial values
+    (``docs/design.md`` §10), as flat indices over ``n_tables`` tables of ``initial``'s rows.
+    Returns the changed rows per table, the share of them whose greedy action (first maximum,
+    as the policies break ties) differs from the initial one, and their mean absolute change.
+    """
+    rows = np.asarray(changed_rows, dtype=np.int64)
+    values = np.asarray(changed_values, dtype=np.float64)
+    if not rows.size:
+        return {"changed_rows_per_table": 0.0, "greedy_changed": 0.0, "mean_abs_change": 0.0}
+    base = np.asarray(initial, dtype=np.float64)[rows % initial.shape[0]]
+    return {
+        "changed_rows_per_table": rows.size / n_tables,
+        "greedy_changed": float(np.mean(values.argmax(axis=1) != base.argmax(axis=1))),
+        "mean_abs_change": float(np.mean(np.abs(values - base))),
+    }
+
+
+def drift_table() -> pd.DataFrame:
+    """:func:`table_drift` of each learning run's newest checkpoint under :data:`RUNS`."""
+    tables = BehaviourPolicies.load_default().tables
+    assert tables is not None  # the shipped behaviours are tile-coded greedy policies
+    rows = []
+    for label, (sweep, cell) in MODES.items():
+        if sweep != "modes":
+            continue
+        init = label.split(",")[0]
+        for run in sorted((RUNS / sweep / cell).glob("ee-seed*")):
+            found = sorted((run / "checkpoints").glob("*.ckpt"))
+            if not found:
+                continue
+            state = load_checkpoint(found[-1])
+            learned = state["learning"]
+            n_tables = len(learned["parameters"]["alpha"])
+            initial = tables.table if init == "shipped" else np.zeros_like(tables.table)
+            rows.append({"mode": label, "run": run.name, "checkpoint": found[-1].stem,
+                         **table_drift(learned["changed_rows"], learned["changed_values"],
+                                       initial, n_tables)})  # fmt: skip
+    return pd.DataFrame(rows)
+
+
 def variants_table() -> pd.DataFrame:
     rows = []
     for label, (sweep, cell, seed) in VARIANTS.items():
@@ -441,6 +491,9 @@ def publish_results() -> list[Path]:
         f"EE with fixed and learned behaviours ({GENERATIONS} generations or "
         f"{MAX_STEPS:,} control steps; mean ± std over seeds)", COLOURS,
     )  # fmt: skip
+    drift = drift_table()
+    if len(drift):
+        written.append(_write_csv(drift, RESULTS / "drift.csv"))
     variants = variants_table()
     if len(variants):
         written.append(_write_csv(variants, RESULTS / "variants.csv"))

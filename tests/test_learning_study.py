@@ -8,7 +8,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from benchmarks.learning_study import generations_to_reach, inheritance_table, meta_convergence
+from benchmarks.learning_study import (
+    generations_to_reach,
+    inheritance_table,
+    meta_convergence,
+    table_drift,
+)
 
 
 def statistics(batteries: list[float], matings: float = 3.0) -> pd.DataFrame:
@@ -73,3 +78,17 @@ def test_meta_convergence_settled_rule() -> None:
     assert table[table["parameter"] == "gamma"]["settled"].all()  # constant parameters
     short = meta_convergence(meta("c", [0.2] * 30))  # no generations 40-59: undecided
     assert short["settled"].isna().all()
+
+
+def test_table_drift_by_hand() -> None:
+    initial = np.array([[1.0, 0.0], [0.0, 2.0], [0.5, 0.5]])  # 3 rows; greedy 0, 1, 0
+    # two tables of 3 rows: flat rows 1 (table 0, row 1) and 3 (table 1, row 0) changed
+    rows = np.array([1, 3])
+    values = np.array([[0.0, 1.0], [1.0, 3.0]])  # row 1 keeps greedy 1; row 0 flips 0 -> 1
+    drift = table_drift(rows, values, initial, n_tables=2)
+    assert drift["changed_rows_per_table"] == 1.0
+    assert drift["greedy_changed"] == 0.5
+    # |changes|: row 1: 0, 1; row 0: 0, 3 -> mean 4 / 4 = 1
+    assert drift["mean_abs_change"] == 1.0
+    assert table_drift(np.array([], dtype=int), np.zeros((0, 2)), initial, 2) == {
+        "changed_rows_per_table": 0.0, "greedy_changed": 0.0, "mean_abs_change": 0.0}
