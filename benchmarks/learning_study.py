@@ -443,7 +443,8 @@ def plot_curves(
                 continue
             stats = aggregate_runs(tables, column)
             x = stats.index.to_numpy()
-            ax.plot(x, stats["mean"], color=colour, label=f"{label} ({len(tables)} runs)")
+            runs = f"{len(tables)} run{'' if len(tables) == 1 else 's'}"
+            ax.plot(x, stats["mean"], color=colour, label=f"{label} ({runs})")
             ax.fill_between(x, stats["mean"] - stats["std"], stats["mean"] + stats["std"],
                             color=colour, alpha=0.12)  # fmt: skip
         ax.set_xlabel("generation")
