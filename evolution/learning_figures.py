@@ -114,8 +114,12 @@ def lifetime_table(groups: Mapping[str, Sequence[pd.DataFrame]]) -> pd.DataFrame
         if not tables:
             continue
         last = min(int(t["generation"].max()) for t in tables)
-        phases = {"early": EARLY, "late": (max(0, last - LATE_SPAN + 1), last)}
+        early = (EARLY[0], min(EARLY[1], last))
+        # the late phase never repeats early generations: a run that closed few has none
+        phases = {"early": early, "late": (max(early[1] + 1, last - LATE_SPAN + 1), last)}
         for phase, (first, final) in phases.items():
+            if first > final:
+                continue
             chosen = [t[t["generation"].between(first, final)] for t in tables]
             chosen = [t for t in chosen if len(t)]
             if not chosen:

@@ -58,6 +58,17 @@ def test_lifetime_table_early_and_late_by_hand() -> None:
     assert late["matings_mean"] == pytest.approx(0.5)
 
 
+def test_lifetime_phases_never_overlap_in_short_runs() -> None:
+    """A run that closed 5 generations has an early phase 0-4 and no late one; one of 13 has a
+    late phase of 10-12 only, never repeating early generations."""
+    short = lifetime_table({"short": [record(5, 0.2, 2.0, 5)]})
+    assert set(short["phase"]) == {"early"} and set(short["generations"]) == {"0-4"}
+    medium = lifetime_table({"medium": [record(13, 0.2, 2.0, 13)]})
+    late = medium[medium["phase"] == "late"]
+    assert set(late["generations"]) == {"10-12"}
+    assert late["batteries_mean"].tolist() == [2.0, 2.0]
+
+
 def test_load_keeps_closed_generations_and_report_writes_figures(tmp_path: Path) -> None:
     for seed, closed in ((0, 12), (1, 0)):
         run = tmp_path / f"ee-seed{seed:03d}"
