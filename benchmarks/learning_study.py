@@ -5,7 +5,7 @@ Usage::
     .venv/bin/python -m benchmarks.learning_study --run [--workers 2]   # the sweeps (resumable)
     .venv/bin/python -m benchmarks.learning_study --publish             # results/ + docs/images/
 
-``--run`` runs four sweeps into ``runs/learning`` (each resumes where it stopped), all EE, 60
+``--run`` runs five sweeps into ``runs/learning`` (each resumes where it stopped), all EE, 60
 generations and a budget of :data:`MAX_STEPS` control steps per run (60 generations of the fixed
 behaviours take 760,000-770,000 steps: a population that cannot complete its generations stops
 after the robot time of about 80 of theirs):
@@ -126,7 +126,7 @@ VARIANTS = {
 
 
 def sweep_commands(workers: int) -> list[tuple[str, list[str]]]:
-    """The four sweeps: (name, ``cyber-rodent`` arguments)."""
+    """The five sweeps: (name, ``cyber-rodent`` arguments)."""
     common = ["--methods", "ee", "--generations", str(GENERATIONS), "--max-steps",
               str(MAX_STEPS), "--workers", str(workers), "--no-progress"]  # fmt: skip
     return [
