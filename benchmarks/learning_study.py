@@ -348,17 +348,21 @@ def table_drift(
 
     A checkpoint stores only the rows of the stacked tables that differ from the initial values
     (``docs/design.md`` §10), as flat indices over ``n_tables`` tables of ``initial``'s rows.
-    Returns the changed rows per table, the share of them whose greedy action (first maximum,
-    as the policies break ties) differs from the initial one, and their mean absolute change.
+    Returns the changed rows per table, the share of them whose greedy action differs from the
+    initial one, and their mean absolute change. The greedy share counts only rows whose initial
+    values have a single best action (NaN if none has): where actions tie, as in every row of
+    zero values, the policy picks at random and there is no greedy action to change.
     """
     rows = np.asarray(changed_rows, dtype=np.int64)
     values = np.asarray(changed_values, dtype=np.float64)
     if not rows.size:
         return {"changed_rows_per_table": 0.0, "greedy_changed": 0.0, "mean_abs_change": 0.0}
     base = np.asarray(initial, dtype=np.float64)[rows % initial.shape[0]]
+    single = (base == base.max(axis=1, keepdims=True)).sum(axis=1) == 1
+    flipped = values[single].argmax(axis=1) != base[single].argmax(axis=1)
     return {
         "changed_rows_per_table": rows.size / n_tables,
-        "greedy_changed": float(np.mean(values.argmax(axis=1) != base.argmax(axis=1))),
+        "greedy_changed": float(flipped.mean()) if single.any() else math.nan,
         "mean_abs_change": float(np.mean(np.abs(values - base))),
     }
 
@@ -366,7 +370,8 @@ def table_drift(
 def drift_table() -> pd.DataFrame:
     """:func:`table_drift` of each learning run's newest checkpoint under :data:`RUNS`."""
     tables = BehaviourPolicies.load_default().tables
-    assert tables is not None  # the shipped behaviours are tile-coded greedy policies
+    if tables is None:
+        raise RuntimeError("the shipped behaviours are not stacked tile-coded tables")
     rows = []
     for label, (sweep, cell) in MODES.items():
         if sweep != "modes":

@@ -90,5 +90,10 @@ def test_table_drift_by_hand() -> None:
     assert drift["greedy_changed"] == 0.5
     # |changes|: row 1: 0, 1; row 0: 0, 3 -> mean 4 / 4 = 1
     assert drift["mean_abs_change"] == 1.0
+    # a tied initial row (row 2) has no greedy action to change: only rows 0 and 1 count
+    tied = table_drift(np.array([2, 4]), np.array([[0.0, 1.0], [0.0, 1.0]]), initial, 2)
+    assert tied["greedy_changed"] == 0.0  # row 4 is row 1: greedy 1 before and after
+    only_tied = table_drift(np.array([2]), np.array([[0.0, 1.0]]), initial, 1)
+    assert math.isnan(only_tied["greedy_changed"])
     assert table_drift(np.array([], dtype=int), np.zeros((0, 2)), initial, 2) == {
         "changed_rows_per_table": 0.0, "greedy_changed": 0.0, "mean_abs_change": 0.0}
