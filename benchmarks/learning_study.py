@@ -68,6 +68,7 @@ from evolution.comparison import available_window, compare_methods, rank_test, r
 from evolution.figures import aggregate_runs, save_figure, styled_pyplot
 from evolution.learning_figures import (
     META_LABELS,
+    label_colours,
     lifetime_table,
     load_learning,
     meta_table,
@@ -263,8 +264,7 @@ def _compare(darwinian: Sequence[float], lamarckian: Sequence[float]) -> dict[st
     out = {"darwinian_runs": float(len(d)), "lamarckian_runs": float(len(lam))}
     for name, values in (("darwinian", d), ("lamarckian", lam)):
         out[f"{name}_mean"], out[f"{name}_std"] = _mean_std(list(values))
-    u, out["p_value"], _ = rank_test(lam, d)
-    out["rank_biserial"] = 2.0 * u / (len(d) * len(lam)) - 1.0 if len(d) and len(lam) else math.nan
+    _, out["p_value"], out["rank_biserial"], _ = rank_test(lam, d)
     return out
 
 
@@ -418,11 +418,9 @@ def plot_curves(
 ) -> list[Path]:
     """Batteries and matings per generation, mean ± std over runs, one line per group; and
     each group's dockings, matings and deaths per 1,000 control steps (equal robot time).
-    ``colours`` names each group's colour (default: a fixed palette in group order)."""
+    ``colours`` fixes a group's colour (the others: :func:`label_colours`)."""
     plt = styled_pyplot()
-    default = ["#555555", "#1f4fd1", "#2a9d3a", "#d1261f", "#e08a00"]
-    palette = [(colours or {}).get(label, default[g % len(default)])
-               for g, label in enumerate(groups)]  # fmt: skip
+    palette = list(label_colours(list(groups), colours).values())
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.4), gridspec_kw={"width_ratios": [1, 1, 1.1]})
     bars = axes[2]
     kinds = ("dockings", "matings", "deaths")
@@ -510,6 +508,7 @@ def publish_results() -> list[Path]:
             {label: _events_per_thousand(found) for label, found in runs.items() if found},
             IMAGES / "learning_variants",
             "Variants from the Cyber Rodent literature against the default (EE, seed 0)",
+            {"default": COLOURS["fixed"]},
         )  # fmt: skip
     return [p for p in written if p.suffix != ".pdf" or p.parent != IMAGES]
 

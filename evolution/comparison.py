@@ -227,25 +227,27 @@ def available_window(tables: Sequence[pd.DataFrame], window: Window = LATE_WINDO
     return end - width + 1, end
 
 
-def rank_test(first: np.ndarray, second: np.ndarray) -> tuple[float, float, str]:
+def rank_test(first: np.ndarray, second: np.ndarray) -> tuple[float, float, float, str]:
     """Two-sided Mann-Whitney U of ``first`` against ``second`` (finite values, one per run).
 
     The exact null distribution when there are no ties and at most :data:`EXACT_MAX_RUNS`
     values per sample, otherwise the normal approximation with tie and continuity corrections.
 
     Returns:
-        ``(U of first, p-value, test)``, test ``"exact"``, ``"asymptotic"``, or ``"none"`` (with
-        NaNs) when either sample is empty.
+        ``(U of first, p-value, rank-biserial effect, test)``: the effect is ``2 U / (n1 n2) - 1``
+        (+1 when every value of ``first`` is higher); test ``"exact"``, ``"asymptotic"``, or
+        ``"none"`` (with NaNs) when either sample is empty.
     """
     if not len(first) or not len(second):
-        return math.nan, math.nan, "none"
+        return math.nan, math.nan, math.nan, "none"
     from scipy.stats import mannwhitneyu  # scipy is slow to import; only this needs it
 
     pooled = np.concatenate([first, second])
     ties = len(np.unique(pooled)) < len(pooled)
     test = "exact" if not ties and max(len(first), len(second)) <= EXACT_MAX_RUNS else "asymptotic"
     result = mannwhitneyu(first, second, alternative="two-sided", method=test)
-    return float(result.statistic), float(result.pvalue), test
+    u = float(result.statistic)
+    return u, float(result.pvalue), 2.0 * u / (len(first) * len(second)) - 1.0, test
 
 
 def compare_methods(
@@ -276,9 +278,8 @@ def compare_methods(
     ce = _finite(run_means(ce_tables, column, *window))
     ee_mean, ee_std = _mean_std(ee)
     ce_mean, ce_std = _mean_std(ce)
-    u, p, test = rank_test(ee, ce)
-    common = u / (len(ee) * len(ce)) if len(ee) and len(ce) else math.nan
-    biserial = 2.0 * common - 1.0
+    u, p, biserial, test = rank_test(ee, ce)
+    common = (biserial + 1.0) / 2.0
     return MethodComparison(
         column=column,
         window=window,

@@ -140,7 +140,7 @@ def lifetime_table(groups: Mapping[str, Sequence[pd.DataFrame]]) -> pd.DataFrame
     return pd.DataFrame(rows)
 
 
-def _colours(labels: Sequence[str], given: Mapping[str, str] | None = None) -> dict[str, str]:
+def label_colours(labels: Sequence[str], given: Mapping[str, str] | None = None) -> dict[str, str]:
     """One colour per label: ``given`` where it names the label (so a study's figures agree),
     else the next of a fixed palette."""
     palette = ["#1f4fd1", "#d1261f", "#2a9d3a", "#9b36c9", "#e08a00", "#555555", "#00a0b0"]
@@ -157,7 +157,7 @@ def plot_meta_parameters(
     fixes a label's colour."""
     plt = styled_pyplot()
     labels = list(dict.fromkeys(table["label"]))
-    colours = _colours(labels, colours)
+    colours = label_colours(labels, colours)
     fig, axes = plt.subplots(2, 2, figsize=(10, 6.4), sharex=True)
     for ax, (name, title) in zip(axes.flat, META_LABELS.items(), strict=True):
         for label in labels:
@@ -186,7 +186,7 @@ def plot_lifetime(
     fixes a label's colour."""
     plt = styled_pyplot()
     labels = list(dict.fromkeys(table["label"]))
-    colours = _colours(labels, colours)
+    colours = label_colours(labels, colours)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, quantity in zip(axes, ("batteries", "matings"), strict=True):
         for label in labels:
@@ -241,6 +241,7 @@ __all__ = [
     "LATE_SPAN",
     "META_LABELS",
     "age_bins",
+    "label_colours",
     "lifetime_table",
     "load_learning",
     "meta_table",

@@ -8,8 +8,8 @@ import pandas as pd
 import pytest
 
 from evolution.learning_figures import (
-    _colours,
     age_bins,
+    label_colours,
     lifetime_table,
     load_learning,
     meta_table,
@@ -95,7 +95,7 @@ def test_closed_generations_from_the_statistics_when_the_record_has_no_column(
 
 
 def test_given_colours_are_kept_and_the_rest_take_unused_palette_colours() -> None:
-    colours = _colours(["a", "b", "c"], {"b": "#1f4fd1", "unused": "#555555"})
+    colours = label_colours(["a", "b", "c"], {"b": "#1f4fd1", "unused": "#555555"})
     # "#1f4fd1" (the palette's first) belongs to b, so a and c take the next two unused ones.
     assert colours == {"a": "#d1261f", "b": "#1f4fd1", "c": "#2a9d3a"}
-    assert _colours(["x", "y"]) == {"x": "#1f4fd1", "y": "#d1261f"}
+    assert label_colours(["x", "y"]) == {"x": "#1f4fd1", "y": "#d1261f"}
