@@ -37,8 +37,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from evolution.grid import cells, compare_cells, load_cells, read_grid
-from evolution.settings import settings
+from evolution.grid import Cell, cells, compare_cells, load_cells, read_grid
+from evolution.runner.config import RunConfig
+from evolution.settings import apply, parse_grid, parse_set, settings
 from evolution.sweep import load_sweep, parse_seeds
 
 #: The paper's headline numbers per 400-step life (Fig. 6): EE at generation 120, CE after
@@ -125,7 +126,8 @@ STUDIES = (
     Study("reflex_length", "reflex length (max steps)", ("survival.reflex_max_steps=3,6",)),
     Study("reflex_speed", "reflex speed", ("survival.reflex_wheel_speed=0.15,0.6",)),
     Study("capture_rule", "what counts as a capture", ("survival.capture_rule=recharge",)),
-    Study("pack_gap", "pack spacing", ("world.pack_gap=0.6,0.9",)),
+    # 0.55 m is the widest gap at which 4 robots and 5 packs still fit the field (WorldConfig)
+    Study("pack_gap", "pack spacing", ("world.pack_gap=0.45,0.55",)),
     Study("decay_docked", "decay while docked", ("survival.decay_while_recharging=true",)),
     Study("ce_tournament", "CE tournament size", ("genetic.tournament_size=4,8",), "ce"),
     Study(
@@ -158,9 +160,33 @@ def sweep_command(study: Study, out: Path) -> list[str]:
     return command
 
 
+def check_studies(studies: Sequence[Study]) -> None:
+    """Refuse, before any sweep starts, a study whose cells are not valid configurations.
+
+    Each cell of each method is resolved from its round's defaults, the study's ``sets`` and the
+    cell's grid values, so a value the world cannot hold (packs that do not fit, say) stops the
+    whole study up front rather than hours in.
+
+    Raises:
+        ValueError: one line naming the study and the value its configuration refuses.
+    """
+    for study in studies:
+        first = FIRST_DEFAULTS if study.round == 1 else {}
+        try:
+            sets = parse_set(list(study.sets))
+            grid_cells: tuple[Cell | None, ...] = cells(parse_grid(list(study.grid))) or (None,)
+            for method in study.methods.split(","):
+                for cell in grid_cells:
+                    values = {**first, **sets, **(cell.settings if cell else {})}
+                    apply(RunConfig(method=method), values)
+        except ValueError as error:
+            raise ValueError(f"study {study.name!r}: {error}") from None
+
+
 def run_studies(studies: Sequence[Study], out: Path, code: Path) -> None:
     """Run (or resume) every study's sweep, one after the other, with the package in ``code``
-    (training the behaviours a combination needs first)."""
+    (training the behaviours a combination needs first); every study is checked first."""
+    check_studies(studies)
     cli = [sys.executable, "-m", "cyber_rodent.cli"]
     for study in studies:
         env = dict(os.environ)
@@ -386,7 +412,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     if args.run:
         mine = [s for s in STUDIES if s.round == args.round]
         chosen = args.only.split(",") if args.only else [s.name for s in mine]
-        run_studies([s for s in mine if s.name in chosen], args.out, args.code.resolve())
+        try:
+            run_studies([s for s in mine if s.name in chosen], args.out, args.code.resolve())
+        except ValueError as error:
+            parser.exit(2, f"{parser.prog}: error: {error}\n")
     table = collect(args.out, args.window, args.partial)
     args.table.parent.mkdir(parents=True, exist_ok=True)
     table.to_csv(args.table, index=False, float_format="%.4g")
