@@ -16,6 +16,9 @@ second-round one with this checkout.
 
 Each run contributes its mean over its last ``--window`` generations; the table gives, per
 study, value and method, the mean and standard deviation over seeds (:mod:`evolution.grid`).
+Publishing reads the table already published and keeps the rows of every study with no
+finished sweep under ``--out``: run directories are not kept, so the studies can be run a few at
+a time, on different machines.
 
     .venv/bin/python -m benchmarks.calibration_study --run --round 2   # the sweeps (hours)
     .venv/bin/python -m benchmarks.calibration_study                   # tables and figures
@@ -265,10 +268,41 @@ def _rates(out: Path, window: int) -> pd.DataFrame:
     return pd.DataFrame(rows).groupby(keys, as_index=False).mean()
 
 
-def collect(out: Path, window: int, partial: bool = False) -> pd.DataFrame:
+def _parse_value(text: object) -> object:
+    """A published ``value`` cell as the sweep wrote it (``1`` an int, ``2.0`` a float, ``True``
+    a bool, else the text), so a row kept from the published table is written back unchanged."""
+    if not isinstance(text, str):
+        return text
+    if text in ("True", "False"):
+        return text == "True"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def read_published(table: Path) -> pd.DataFrame | None:
+    """The published table, or None where there is none yet."""
+    if not table.exists():
+        return None
+    published = pd.read_csv(table, dtype={"value": str, "generations": str})
+    published["value"] = published["value"].map(_parse_value)
+    return published
+
+
+def collect(
+    out: Path, window: int, partial: bool = False, published: pd.DataFrame | None = None
+) -> pd.DataFrame:
     """One row per round, study, value and method (a round's baseline rows, and again under
     each of its single studies' keys); only cells whose runs all reached the last generation,
-    unless ``partial``."""
+    unless ``partial``.
+
+    A study with no finished sweep under ``out`` keeps its rows from ``published`` (the table
+    as last written), so the studies can be run and published on different machines, a few at
+    a time, without losing the runs already published.
+    """
     frames = []
     for study in STUDIES:
         root = study.directory(out)
@@ -288,16 +322,29 @@ def collect(out: Path, window: int, partial: bool = False) -> pd.DataFrame:
         table.insert(0, "study", study.name)
         table.insert(0, "round", study.round)
         frames.append(table)
-    if not frames:
+    pieces = []
+    if frames:
+        rows = pd.concat(frames, ignore_index=True)
+        rows = rows.merge(_rates(out, window), on=["round", "study", "cell", "method"], how="left")
+        keys = [c for c in rows.columns if "." in c]
+        rows["key"] = rows[keys].notna().idxmax(axis=1).where(rows[keys].notna().any(axis=1))
+        rows["value"] = [
+            row[row["key"]] if isinstance(row["key"], str) else math.nan
+            for _, row in rows.iterrows()
+        ]
+        pieces.append(rows.drop(columns=[*keys, "cell"]))
+    if published is not None:
+        fresh = {
+            (r, s) for piece in pieces for r, s in zip(piece["round"], piece["study"], strict=True)
+        }
+        pairs = zip(published["round"], published["study"], strict=True)
+        kept = published[[pair not in fresh for pair in pairs]]
+        # a single study's reference rows are copies of its round's baseline: derived again below
+        kept = kept[(kept["study"] == "baseline") | ~kept["default"].astype(bool)]
+        pieces.append(kept.drop(columns="default"))
+    if not pieces:
         raise SystemExit(f"no finished calibration sweeps under {out}")
-    rows = pd.concat(frames, ignore_index=True)
-    rows = rows.merge(_rates(out, window), on=["round", "study", "cell", "method"], how="left")
-    keys = [c for c in rows.columns if "." in c]
-    rows["key"] = rows[keys].notna().idxmax(axis=1).where(rows[keys].notna().any(axis=1))
-    rows["value"] = [
-        row[row["key"]] if isinstance(row["key"], str) else math.nan for _, row in rows.iterrows()
-    ]
-    rows = rows.drop(columns=[*keys, "cell"])
+    rows = pd.concat(pieces, ignore_index=True)
     expanded = [rows]
     for study in STUDIES:  # a round's defaults are each of its single studies' reference value
         in_round = rows[rows["round"] == study.round]
@@ -403,7 +450,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument(
         "--partial", action="store_true", help="also cells whose runs are still going"
     )
-    parser.add_argument("--table", type=Path, default=Path("results/calibration.csv"))
+    parser.add_argument(
+        "--table", type=Path, default=Path("results/calibration.csv"),
+        help="the published table: studies with no sweep under --out keep their rows from it",
+    )  # fmt: skip
     parser.add_argument(
         "--figure", type=Path, default=Path("docs/images/calibration"),
         help="figure base name of round 2; round 1's adds _first",
@@ -416,7 +466,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             run_studies([s for s in mine if s.name in chosen], args.out, args.code.resolve())
         except ValueError as error:
             parser.exit(2, f"{parser.prog}: error: {error}\n")
-    table = collect(args.out, args.window, args.partial)
+    table = collect(args.out, args.window, args.partial, read_published(args.table))
     args.table.parent.mkdir(parents=True, exist_ok=True)
     table.to_csv(args.table, index=False, float_format="%.4g")
     paths = []
