@@ -12,7 +12,8 @@ The study ran in two rounds. The first varied the unknowns that set the rates mo
 first defaults (:data:`FIRST_DEFAULTS`, a 0.1 s step) and tried the combinations that became
 today's defaults; the second varies every unknown, one at a time, around today's defaults. A
 first-round sweep runs with the code of the first defaults (``--code``, a checkout of it), a
-second-round one with this checkout.
+second-round one with a checkout of today's defaults (the published round ran with the commit
+``results/fig6`` records).
 
 Each run contributes its mean over its last ``--window`` generations; the table gives, per
 study, value and method, the mean and standard deviation over seeds (:mod:`evolution.grid`).
