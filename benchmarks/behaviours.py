@@ -73,8 +73,7 @@ def survival_rules(items: list[str]) -> SurvivalConfig | None:
     """
     if not items:
         return None
-    from evolution import settings
-    from evolution.runner import RunConfig
+    from evolution.runner import RunConfig, settings
 
     values = settings.parse_set(items)
     for item in items:

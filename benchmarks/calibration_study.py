@@ -16,7 +16,7 @@ second-round one with a checkout of today's defaults (the published round ran wi
 ``results/fig6`` records).
 
 Each run contributes its mean over its last ``--window`` generations; the table gives, per
-study, value and method, the mean and standard deviation over seeds (:mod:`evolution.grid`).
+study, value and method, the mean and standard deviation over seeds (:mod:`evolution.lab.grid`).
 Publishing reads the table already published and keeps the rows of every study with no
 finished sweep under ``--out``: run directories are not kept, so the studies can be run a few at
 a time, on different machines.
@@ -41,10 +41,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from evolution.grid import Cell, cells, compare_cells, load_cells, read_grid
+from evolution.lab.cells import compare_cells, load_cells
+from evolution.lab.grid import Cell, cells, read_grid
+from evolution.lab.sweep import load_sweep, parse_seeds
 from evolution.runner.config import RunConfig
-from evolution.settings import apply, parse_grid, parse_set, settings
-from evolution.sweep import load_sweep, parse_seeds
+from evolution.runner.settings import apply, parse_grid, parse_set, settings
 
 #: The paper's headline numbers per 400-step life (Fig. 6): EE at generation 120, CE after
 #: it converged.
@@ -383,7 +384,7 @@ def _label(value: object) -> str:
 def plot(table: pd.DataFrame, round_: int, out_base: Path) -> list[Path]:
     """One column per study of a round: batteries, matings and completed agents against the
     value."""
-    from evolution.figures import METHOD_STYLE, save_figure, styled_pyplot
+    from evolution.lab.figures import METHOD_STYLE, save_figure, styled_pyplot
 
     plt = styled_pyplot()
     table = table[table["round"] == round_]

@@ -63,8 +63,8 @@ def runner_step_cost(steps: int = 2000) -> dict:
     """Per-step wall time of the evolution runner (4 robots / 3 robots), without and with the
     profile; the profile adds range noise to the perception and nothing else per step."""
     from evolution.config import EvolutionConfig
+    from evolution.lab.transfer import hardware_run_config
     from evolution.runner import EvolutionRunner, RunConfig
-    from evolution.transfer import hardware_run_config
 
     base = RunConfig(evolution=EvolutionConfig(population_size=12, n_robots=3))
     configs = {

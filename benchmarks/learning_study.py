@@ -31,7 +31,7 @@ learning records, ``run.json``: :mod:`benchmarks.publish_runs`) and draws from t
   reached; column ``window``), mean ± sample std over runs, and, against ``fixed`` over the
   same generations, its mean, the two-sided Mann-Whitney p-value and the rank-biserial effect;
 * ``results/learning/meta.csv`` and ``lifetime.csv``: the evolved learning parameters per
-  generation and the within-life curves (:mod:`evolution.learning_figures`);
+  generation and the within-life curves (:mod:`evolution.lab.learning_figures`);
 * ``results/learning/inheritance.csv``: Lamarckian against Darwinian inheritance for each
   initial value, on the early generations (:data:`EARLY_WINDOW`) and on the generations a run
   needs to reach :data:`THRESHOLD_SHARE` of the fixed behaviours' batteries over
@@ -64,9 +64,9 @@ from behaviours.policies import BehaviourPolicies
 from benchmarks.publish_runs import publish
 from cyber_rodent.atomic import atomic_output
 from evolution.checkpoint import load_checkpoint
-from evolution.comparison import available_window, compare_methods, rank_test, run_means
-from evolution.figures import aggregate_runs, save_figure, styled_pyplot
-from evolution.learning_figures import (
+from evolution.lab.comparison import available_window, compare_methods, rank_test, run_means
+from evolution.lab.figures import aggregate_runs, save_figure, styled_pyplot
+from evolution.lab.learning_figures import (
     META_LABELS,
     label_colours,
     lifetime_table,
@@ -257,7 +257,7 @@ def generations_to_reach(table: pd.DataFrame, level: float, smoothing: int = SMO
 
 
 def _compare(darwinian: Sequence[float], lamarckian: Sequence[float]) -> dict[str, float]:
-    """Means, sample stds, two-sided Mann-Whitney p (:func:`evolution.comparison.rank_test`) and
+    """Means, sample stds, two-sided Mann-Whitney p (:func:`evolution.lab.comparison.rank_test`) and
     rank-biserial effect (positive when Lamarckian is higher) of two samples of per-run values."""
     d = np.array([v for v in darwinian if math.isfinite(v)], dtype=float)
     lam = np.array([v for v in lamarckian if math.isfinite(v)], dtype=float)

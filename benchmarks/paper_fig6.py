@@ -36,15 +36,15 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 
 from benchmarks.publish_runs import publish  # noqa: E402
 from cyber_rodent.atomic import atomic_output  # noqa: E402
-from evolution.comparison import (  # noqa: E402
+from evolution.lab.comparison import (  # noqa: E402
     LATE_WINDOW,
     available_window,
     completions_by_method,
     run_means,
     summary_table,
 )
-from evolution.figures import plot_completions, plot_fig6  # noqa: E402
-from evolution.sweep import load_sweep  # noqa: E402
+from evolution.lab.figures import plot_completions, plot_fig6  # noqa: E402
+from evolution.lab.sweep import load_sweep  # noqa: E402
 
 #: The paper's headline numbers, read from its Fig. 6 (per 400-step life).
 PAPER = {

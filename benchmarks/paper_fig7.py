@@ -2,14 +2,14 @@
 
 The 5 fittest individuals of generation 40 of a simulated EE run seed a hardware-like colony of
 3 robots x 5 agents (the ``"hardware"`` profile of :mod:`cyber_rodent.profiles`), which evolves
-10 more generations, once per transfer seed (:func:`evolution.transfer.transfer`)::
+10 more generations, once per transfer seed (:func:`evolution.lab.transfer.transfer`)::
 
     .venv/bin/python -m benchmarks.paper_fig7 --out runs/fig7 [--source-seed 0] [--seeds 0-4] \
         [--generations 10] [--source-generations 40] [--table-dir results/fig7] \
         [--figure-dir docs/images]
 
 1. ``<out>/source``: the source run, every checkpoint kept; a finished one is reused, an
-   interrupted one resumed (:func:`evolution.experiment.evolve`);
+   interrupted one resumed (:func:`evolution.lab.experiment.evolve`);
 2. ``<out>/transfer-seed<N>``: one transfer per seed; a finished one is reused, an interrupted
    one is run again (a transfer cannot be resumed; it is deterministic for its seed);
 3. ``--table-dir``: the small tables (never checkpoints): ``source/statistics.csv`` and
@@ -38,7 +38,8 @@ import pandas as pd
 
 from cyber_rodent.atomic import write_bytes
 from cyber_rodent.profiles import profile_by_name
-from evolution.api import (
+from evolution.checkpoint import CheckpointError
+from evolution.lab.api import (
     EVENTS_FILE,
     ROBOT_STATISTICS_FILE,
     RUN_FILE,
@@ -46,12 +47,11 @@ from evolution.api import (
     holds_a_run,
     make_config,
 )
-from evolution.checkpoint import CheckpointError
-from evolution.experiment import evolve, read_run_record
-from evolution.figures import plot_per_robot, pool_per_robot
-from evolution.settings import parse_set
-from evolution.sweep import parse_seeds
-from evolution.transfer import TRANSFER_FILE, transfer
+from evolution.lab.experiment import evolve, read_run_record
+from evolution.lab.figures import plot_per_robot, pool_per_robot
+from evolution.lab.sweep import parse_seeds
+from evolution.lab.transfer import TRANSFER_FILE, transfer
+from evolution.runner.settings import parse_set
 
 #: The paper's transfer: the 5 fittest individuals onto 3 robots with 5 virtual agents each.
 TOP, ROBOTS, AGENTS_PER_ROBOT = 5, 3, 5

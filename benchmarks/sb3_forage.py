@@ -243,7 +243,7 @@ def plot_curve(
     points: Sequence[CurvePoint], sarsa: EvaluationResult, algo: str, path: Path
 ) -> None:
     """Success rate and median steps to dock against environment steps, Sarsa(λ) as lines."""
-    from evolution.figures import styled_pyplot
+    from evolution.lab.figures import styled_pyplot
 
     plt = styled_pyplot()
     x = np.array([p.env_steps for p in points]) / 1000

@@ -144,8 +144,7 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
         check_episodes(args.episodes)
     survival = None  # the paper's rules
     if args.config or args.set:  # an evolution run's rules: its survival.* settings only
-        from evolution import settings
-        from evolution.runner import RunConfig
+        from evolution.runner import RunConfig, settings
 
         from_file = settings.load_config_file(args.config) if args.config else {}
         from_set = settings.parse_set(args.set)
@@ -184,15 +183,15 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
 
 def _settings(args: argparse.Namespace) -> dict[str, Any]:
     """The settings of ``--config FILE`` then ``--set KEY=VALUE`` (later ones win)."""
-    from evolution import settings
+    from evolution.runner import settings
 
     from_file = settings.load_config_file(args.config) if args.config else {}
     return settings.merge(from_file, settings.parse_set(args.set))
 
 
 def _cmd_config(args: argparse.Namespace) -> int:
-    from evolution.api import make_config
-    from evolution.settings import to_toml
+    from evolution.lab.api import make_config
+    from evolution.runner.settings import to_toml
 
     config = make_config(args.method, **_settings(args))
     sys.stdout.write(to_toml(config, method=args.method))
@@ -200,7 +199,7 @@ def _cmd_config(args: argparse.Namespace) -> int:
 
 
 def _cmd_evolve(args: argparse.Namespace) -> int:
-    from evolution import experiment
+    from evolution.lab import experiment
 
     overrides = _settings(args)
     out = args.out if args.out is not None else experiment.default_out_dir(args.method, args.seed)
@@ -250,7 +249,7 @@ def _cmd_transfer(args: argparse.Namespace) -> int:
     from cyber_rodent.validation import check_integer
     from cyber_rodent.world import MAX_ROBOTS
     from evolution.config import MAX_GENERATIONS, MAX_POPULATION
-    from evolution.transfer import ROBOT_STATISTICS_FILE, transfer
+    from evolution.lab.transfer import ROBOT_STATISTICS_FILE, transfer
 
     # The numbers and paths first: transfer() reads the source checkpoint before its own checks.
     check_integer("--generation", args.generation, 0, MAX_GENERATIONS)
@@ -297,7 +296,7 @@ def _cmd_transfer(args: argparse.Namespace) -> int:
 
 
 def _cmd_resume(args: argparse.Namespace) -> int:
-    from evolution import experiment
+    from evolution.lab import experiment
 
     try:
         path, table = experiment.resume_run(
@@ -326,10 +325,9 @@ def _duration(seconds: float) -> str:
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from cyber_rodent.validation import check_integer
-    from evolution import experiment
-    from evolution.grid import check_grid
-    from evolution.settings import parse_grid
-    from evolution.sweep import (
+    from evolution.lab import experiment
+    from evolution.lab.grid import check_grid
+    from evolution.lab.sweep import (
         STEP_SECONDS,
         SweepSpec,
         check_ray_address,
@@ -337,6 +335,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         projected_seconds,
         sweep,
     )
+    from evolution.runner.settings import parse_grid
 
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     if args.max_steps is not None:
@@ -392,7 +391,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
-    from evolution import experiment
+    from evolution.lab import experiment
 
     if not Path(args.dir).is_dir():
         what = "is a file, not" if Path(args.dir).exists() else "is not"
@@ -405,7 +404,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from evolution import experiment, video
+    from evolution.lab import experiment, video
 
     if (args.dir is None) == (args.checkpoint is None):
         raise CliError("give a run directory or --checkpoint FILE (one of them)")
@@ -487,11 +486,11 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
 #: ``add_arguments(parser)`` and ``run(args) -> int``: name → (module, one-line summary).
 MOUNTED: dict[str, tuple[str, str]] = {
     "view": (
-        "evolution.viewer",
+        "evolution.lab.viewer",
         "watch a run, a checkpoint or a task live in MuJoCo's interactive viewer",
     ),
     "deploy": (
-        "evolution.deploy.__main__",
+        "evolution.lab.deploy.__main__",
         "write a deployment bundle of a run's fittest mated agents for a real robot",
     ),
     "export": (
@@ -820,7 +819,7 @@ def _user_errors() -> tuple[type[Exception], ...]:
     if "evolution" not in sys.modules:
         return errors
     from evolution.checkpoint import CheckpointError
-    from evolution.sweep import SweepFailed
+    from evolution.lab.sweep import SweepFailed
 
     return (*errors, CheckpointError, SweepFailed)
 

@@ -7,10 +7,12 @@ The world-independent core: the genome (:class:`Genome`), the 39-weight controll
 atomic checkpoints (:mod:`evolution.checkpoint`). Every number of the paper is a field of
 :class:`EvolutionConfig`.
 
-The physics side (:mod:`evolution.runner`, :mod:`evolution.api`) is imported on first use, so
-the core stays importable without MuJoCo::
+The physics side (:mod:`evolution.runner`) is imported on first use, so the core stays
+importable without MuJoCo. The experiment tooling (one run in one call, sweeps, figures,
+videos, the viewer, transfer and deployment) is :mod:`evolution.lab`, which imports this core
+and is never imported by it::
 
-    from evolution import run
+    from evolution.lab import run
     table = run(method="ee", generations=5, seed=0)
 """
 
@@ -37,15 +39,13 @@ from evolution.stats import GenerationStats, StatisticsRecorder
 
 #: Names served lazily from the physics-side modules (see ``__getattr__``).
 _LAZY = {
-    "run": "evolution.api",
-    "make_config": "evolution.api",
     "RunConfig": "evolution.runner",
     "EvolutionRunner": "evolution.runner",
 }
 
 
 def __getattr__(name: str) -> Any:
-    """Import the runner and the API on first use (they pull in MuJoCo and the behaviours)."""
+    """Import the runner on first use (it pulls in MuJoCo and the behaviours)."""
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'evolution' has no attribute {name!r}")
@@ -80,10 +80,8 @@ __all__ = [
     "draw_replacement",
     "fitness",
     "load_checkpoint",
-    "make_config",
     "make_offspring",
     "next_generation",
-    "run",
     "save_checkpoint",
     "tournament",
 ]

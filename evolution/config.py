@@ -33,6 +33,9 @@ from cyber_rodent.validation import (
 )
 from cyber_rodent.world import MAX_ROBOTS
 
+#: The two evolution methods: embodied evolution and the centralised GA baseline (paper §4.1).
+METHODS = ("ee", "ce")
+
 #: Number of evolved weights (paper §3.5): 3 for the recharge decision + 12 x 3 for selection.
 GENOME_LENGTH = 39
 #: Learning mode's genes after the controller weights (docs/design.md §11): four learning

@@ -71,7 +71,7 @@ NO_PARTNER = -1
 
 #: :attr:`TimeSharingScheduler.completed_lives` keeps the lives of the generations from this
 #: many below the newest closed one upwards: a checkpoint written when a generation closes
-#: still holds that generation's lives (what :func:`evolution.transfer.fittest_individuals`
+#: still holds that generation's lives (what :func:`evolution.lab.transfer.fittest_individuals`
 #: ranks), and the state does not grow over a long run. EE slots run ahead of the last closed
 #: generation by several generations, so this counts from the closed generations, not from
 #: the newest lives.

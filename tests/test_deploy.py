@@ -23,7 +23,8 @@ from behaviours.greedy_policy import GreedyPolicy
 from cyber_rodent import constants as C
 from cyber_rodent.profiles import HardwareProfile
 from evolution.config import EvolutionConfig
-from evolution.deploy import (
+from evolution.genome import Genome
+from evolution.lab.deploy import (
     BUNDLE_FILE,
     README_FILE,
     REFERENCE_FILE,
@@ -31,13 +32,11 @@ from evolution.deploy import (
     record_decisions,
     write_bundle,
 )
-from evolution.deploy.__main__ import add_arguments, main, run
-from evolution.deploy.readme import SECTIONS
-from evolution.deploy.selection import choose_agents
-from evolution.experiment import run_config_from_record
-from evolution.genome import Genome
-from evolution.runner import EvolutionRunner, RunConfig
-from evolution.transfer import Individual, hardware_run_config
+from evolution.lab.deploy.__main__ import add_arguments, main, run
+from evolution.lab.deploy.readme import SECTIONS
+from evolution.lab.deploy.selection import choose_agents
+from evolution.lab.transfer import Individual, hardware_run_config
+from evolution.runner import EvolutionRunner, RunConfig, run_config_from_record
 
 SMALL = EvolutionConfig(population_size=8, n_robots=4, lifetime_steps=80, time_sharing_steps=40)
 
@@ -74,7 +73,7 @@ def recorded(tmp_path_factory):
 
 
 def test_reference_step_imports_only_numpy_and_torch() -> None:
-    from evolution.deploy import reference_step
+    from evolution.lab.deploy import reference_step
 
     tree = ast.parse(open(reference_step.__file__).read())
     imported = set()
@@ -104,7 +103,7 @@ def test_bundle_round_trips(recorded) -> None:
         expected = GreedyPolicy(load_values(name)).act(states)
         np.testing.assert_array_equal(module(torch.from_numpy(states)).numpy(), expected)
     assert (bundle / REFERENCE_FILE).read_text() == open(
-        importlib.import_module("evolution.deploy.reference_step").__file__
+        importlib.import_module("evolution.lab.deploy.reference_step").__file__
     ).read()
 
 
@@ -345,7 +344,7 @@ TINY = RunConfig(evolution=EvolutionConfig(
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     """One generation of 8 agents (seed 1: 2 of the 8 completed lives mated)."""
-    from evolution.api import run as run_evolution
+    from evolution.lab.api import run as run_evolution
 
     out = tmp_path_factory.mktemp("runs") / "tiny"
     run_evolution("ee", 1, 1, config=TINY, out_dir=out)
@@ -406,13 +405,13 @@ def test_cli_bad_input_is_one_line_and_leaves_nothing(
     full.update(dict(zip(argv[::2], argv[1::2], strict=True)))
     assert main([x for kv in full.items() for x in kv]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("python -m evolution.deploy: error: "), err
+    assert err.count("\n") == 1 and err.startswith("python -m evolution.lab.deploy: error: "), err
     assert re.search(message, err), err
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
 
 
 def test_cli_refuses_a_run_where_no_agent_mated(tmp_path, capsys) -> None:
-    from evolution.api import run as run_evolution
+    from evolution.lab.api import run as run_evolution
 
     config = RunConfig(evolution=EvolutionConfig(
         population_size=4, n_robots=2, lifetime_steps=40, time_sharing_steps=20

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from scipy.stats import linregress, mannwhitneyu
 
-from evolution.comparison import (
+from evolution.lab.comparison import (
     EXACT_MAX_RUNS,
     available_window,
     compare_methods,

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from evolution.figures import (
+from evolution.lab.figures import (
     aggregate_runs,
     plot_completions,
     plot_fig6,

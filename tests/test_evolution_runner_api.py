@@ -1,4 +1,4 @@
-"""The three-line API: ``from evolution import run; table = run(...)``.
+"""The three-line API: ``from evolution.lab import run; table = run(...)``.
 
 Small, fast runs (4 robots x 2 agents, lifetime 80) with the reactive behaviours: results on
 disk, resuming, refusing to overwrite, and clear errors for bad input that lose no data.
@@ -13,9 +13,9 @@ import pandas as pd
 import pytest
 
 from behaviours import BehaviourPolicies
-from evolution.api import CHECKPOINT_DIR, OVERRIDES, make_config
 from evolution.checkpoint import CheckpointError
 from evolution.config import EvolutionConfig
+from evolution.lab.api import CHECKPOINT_DIR, OVERRIDES, make_config
 from evolution.runner import RunConfig
 
 REACTIVE = BehaviourPolicies.reactive()
@@ -29,7 +29,7 @@ def _snapshot(directory) -> dict[str, bytes]:
 
 
 def test_three_lines() -> None:
-    from evolution import run
+    from evolution.lab import run
 
     table = run(method="ee", generations=2, seed=0, policies=REACTIVE, **SMALL)
     assert isinstance(table, pd.DataFrame)
@@ -41,7 +41,7 @@ def test_three_lines() -> None:
 
 
 def test_out_dir_holds_statistics_events_run_record_and_checkpoints(tmp_path) -> None:
-    from evolution import run
+    from evolution.lab import run
 
     table = run("ce", 2, 1, out_dir=tmp_path, policies=REACTIVE, **SMALL)
     on_disk = pd.read_csv(tmp_path / "statistics.csv")
@@ -59,7 +59,7 @@ def test_out_dir_holds_statistics_events_run_record_and_checkpoints(tmp_path) ->
 
 
 def test_resume_continues_bit_identically_and_never_overwrites(tmp_path) -> None:
-    from evolution import run
+    from evolution.lab import run
 
     first = tmp_path / "interrupted"
     run("ee", 1, 5, out_dir=first, policies=REACTIVE, **SMALL)
@@ -77,7 +77,7 @@ def test_resume_continues_bit_identically_and_never_overwrites(tmp_path) -> None
 
 
 def test_resume_with_another_config_or_a_corrupt_checkpoint_loses_nothing(tmp_path) -> None:
-    from evolution import run
+    from evolution.lab import run
 
     run("ee", 2, 0, out_dir=tmp_path, policies=REACTIVE, **SMALL)
     before = _snapshot(tmp_path)
@@ -112,7 +112,7 @@ def test_resume_with_another_config_or_a_corrupt_checkpoint_loses_nothing(tmp_pa
     ],
 )
 def test_bad_overrides_get_clear_errors(overrides, message, tmp_path) -> None:
-    from evolution import run
+    from evolution.lab import run
 
     with pytest.raises(ValueError, match=message):
         run("ee", 1, 0, out_dir=tmp_path / "run", policies=REACTIVE, **overrides)
@@ -120,7 +120,7 @@ def test_bad_overrides_get_clear_errors(overrides, message, tmp_path) -> None:
 
 
 def test_bad_arguments_get_clear_errors() -> None:
-    from evolution import run
+    from evolution.lab import run
 
     with pytest.raises(ValueError, match="method must be one of ee, ce"):
         run("ga", 1, 0, policies=REACTIVE)
@@ -133,7 +133,7 @@ def test_bad_arguments_get_clear_errors() -> None:
 
 
 def test_missing_trained_values_name_the_reactive_alternative(tmp_path, monkeypatch) -> None:
-    from evolution import run
+    from evolution.lab import run
 
     monkeypatch.setenv("CYBER_RODENT_BEHAVIOUR_VALUES", str(tmp_path))  # an empty directory
     with pytest.raises(FileNotFoundError, match=r"BehaviourPolicies.reactive\(\)"):

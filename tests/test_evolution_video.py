@@ -15,9 +15,8 @@ import pytest
 from behaviours import BehaviourPolicies
 from cyber_rodent.render import boxes_intersect
 from cyber_rodent.vision import CameraConfig
-from evolution.api import make_config
-from evolution.runner import EvolutionRunner
-from evolution.video import (
+from evolution.lab.api import make_config
+from evolution.lab.video import (
     MAX_HEIGHT,
     Camera,
     RunVideo,
@@ -30,6 +29,7 @@ from evolution.video import (
     render_video,
     start_checkpoint,
 )
+from evolution.runner import EvolutionRunner
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ import imageio.v3 as iio
 import pandas as pd
 import pytest
 
-from evolution.sweep import SweepSpec, load_sweep, parse_seeds, run_dir, sweep
+from evolution.lab.sweep import SweepSpec, load_sweep, parse_seeds, run_dir, sweep
 
 #: A tiny world and population: two robots, four agents, short lives, so a generation takes
 #: a few seconds.
@@ -152,7 +152,7 @@ def test_kill_mid_run_then_resume_is_identical(tmp_path: Path) -> None:
 
 def _serial(tmp_path: Path, spec: SweepSpec) -> dict:
     from behaviours import BehaviourPolicies
-    from evolution.api import run
+    from evolution.lab.api import run
 
     reactive = BehaviourPolicies.reactive()
     return {
@@ -273,7 +273,7 @@ def test_grid_sweep_runs_every_cell_and_compares_them(tmp_path: Path) -> None:
 
 
 def test_a_run_killed_before_its_first_record_can_start_again(tmp_path: Path) -> None:
-    from evolution.experiment import VERSIONS_FILE, prepare_out_dir
+    from evolution.lab.experiment import VERSIONS_FILE, prepare_out_dir
 
     out = tmp_path / "run"
     out.mkdir()
@@ -295,7 +295,7 @@ def test_a_run_killed_before_its_first_record_can_start_again(tmp_path: Path) ->
     ],
 )
 def test_a_run_stopped_while_starting_is_replaced_with_force(tmp_path: Path, leftovers) -> None:
-    from evolution.experiment import (
+    from evolution.lab.experiment import (
         VERSIONS_FILE,
         prepare_out_dir,
         resume_run,
@@ -325,7 +325,7 @@ def test_a_run_stopped_while_starting_is_replaced_with_force(tmp_path: Path, lef
 
 
 def test_a_run_or_notes_are_not_taken_for_a_stopped_start(tmp_path: Path) -> None:
-    from evolution.experiment import VERSIONS_FILE, stopped_while_starting
+    from evolution.lab.experiment import VERSIONS_FILE, stopped_while_starting
 
     run = tmp_path / "run"
     run.mkdir()
@@ -353,7 +353,7 @@ def test_resume_points_a_sweep_directory_to_sweep_resume(tmp_path: Path) -> None
 
 
 def test_projected_sweep_time_scales_with_the_work() -> None:
-    from evolution.sweep import RENDERED_STEP_COST, projected_seconds
+    from evolution.lab.sweep import RENDERED_STEP_COST, projected_seconds
 
     spec = SweepSpec(("ee",), (0, 1), 10, TINY_OVERRIDES)
     base = projected_seconds(spec, workers=1)
@@ -370,7 +370,7 @@ def test_projected_sweep_time_scales_with_the_work() -> None:
 
 
 def test_sweep_refuses_too_many_runs_before_listing_them() -> None:
-    from evolution.sweep import MAX_RUNS
+    from evolution.lab.sweep import MAX_RUNS
 
     with pytest.raises(ValueError, match=f"more than {MAX_RUNS} seeds"):
         parse_seeds(f"0-{10**12}")

@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from evolution.learning_figures import (
+from evolution.lab.learning_figures import (
     age_bins,
     label_colours,
     lifetime_table,

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from benchmarks.paper_fig7 import main, summarise
-from evolution.experiment import evolve
+from evolution.lab.experiment import evolve
 
 #: A tiny source colony: 2 robots x 5 agents, 40-step lifetimes.
 SMALL = ["population_size=10", "n_robots=2", "lifetime_steps=40", "time_sharing_steps=20"]

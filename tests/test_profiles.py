@@ -27,9 +27,9 @@ from cyber_rodent.profiles import (
 from cyber_rodent.vision import CameraConfig, VisionNoise
 from cyber_rodent.world import World, WorldConfig
 from evolution.config import EvolutionConfig
+from evolution.lab.transfer import hardware_run_config
 from evolution.runner import EvolutionRunner, RunConfig
 from evolution.stats import StatisticsRecorder
-from evolution.transfer import hardware_run_config
 
 RANGE_MAX = np.tile(np.array([0.8, 0.3, 0.3, 0.3, 0.3, 0.3, 0.3, 0.3]), (3, 1))
 SMALL = EvolutionConfig(population_size=8, n_robots=4, lifetime_steps=80, time_sharing_steps=40)

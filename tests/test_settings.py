@@ -12,16 +12,17 @@ import pytest
 
 from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.world import WorldConfig
-from evolution.api import make_config
 from evolution.config import (
     EvolutionConfig,
     GeneticConfig,
     LearningConfig,
     ReproductionConfig,
 )
-from evolution.grid import Cell, cells, compare_cells, run_final_means
+from evolution.lab.api import make_config
+from evolution.lab.cells import compare_cells, run_final_means
+from evolution.lab.grid import Cell, cells
 from evolution.runner import RunConfig
-from evolution.settings import (
+from evolution.runner.settings import (
     FLAT_KEYS,
     SHARED_KEYS,
     apply,

@@ -1,5 +1,5 @@
 """The Ray backend's unit of work without Ray: a run advanced chunk by chunk through
-:func:`evolution.sweep.advance_run`, its files kept only by the caller, ends with the files of
+:func:`evolution.lab.sweep.advance_run`, its files kept only by the caller, ends with the files of
 one uninterrupted run, byte for byte."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from evolution.checkpoint import CheckpointError
-from evolution.sweep import KEEP_CHECKPOINTS, RunChunk, advance_run, run_one
+from evolution.lab.sweep import KEEP_CHECKPOINTS, RunChunk, advance_run, run_one
 
 #: Two robots, four agents, short lives: a generation takes a fraction of a second.
 TINY = {"population_size": 4, "n_robots": 2, "lifetime_steps": 60, "time_sharing_steps": 30}

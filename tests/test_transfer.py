@@ -10,12 +10,10 @@ import pytest
 
 from behaviours import BehaviourPolicies
 from cyber_rodent.profiles import HardwareProfile
-from evolution.api import run
 from evolution.config import EvolutionConfig
 from evolution.genome import Genome
-from evolution.runner import RunConfig
-from evolution.scheduler import EmbodiedEvolution
-from evolution.transfer import (
+from evolution.lab.api import run
+from evolution.lab.transfer import (
     ROBOT_STATISTICS_FILE,
     TRANSFER_FILE,
     checkpoint_of_generation,
@@ -23,6 +21,8 @@ from evolution.transfer import (
     hardware_run_config,
     transfer,
 )
+from evolution.runner import RunConfig
+from evolution.scheduler import EmbodiedEvolution
 
 SMALL = dict(population_size=8, n_robots=4, lifetime_steps=80, time_sharing_steps=40)
 

@@ -1,9 +1,9 @@
-"""``cyber-rodent view`` (:mod:`evolution.viewer`): the live viewer on a task and a checkpoint.
+"""``cyber-rodent view`` (:mod:`evolution.lab.viewer`): the live viewer on a task and a checkpoint.
 
 The window tests run the viewer in a subprocess (a GL crash cannot take pytest down) on a
 virtual X display: an ``Xvfb`` started here on a free display number (``-displayfd``), with
 ``MUJOCO_GL=glfw``. They check the viewer's own ``--screenshot`` (read back from the X server,
-:mod:`evolution.window_capture`): the field is in it, every robot's body and the labels sit
+:mod:`evolution.lab.window_capture`): the field is in it, every robot's body and the labels sit
 where the viewer's camera puts them. The task test also reads Xvfb's framebuffer file
 (``-fbdir``, XWD) while the viewer runs, an independent look at the screen, and compares it
 with the screenshot. Without the ``Xvfb`` binary the window tests are skipped (CI installs it:
@@ -30,8 +30,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from evolution import viewer
-from evolution.viewer import OVERVIEW, Controls, Mirror, Session, TaskSource
+from evolution.lab import viewer
+from evolution.lab.viewer import OVERVIEW, Controls, Mirror, Session, TaskSource
 
 #: The virtual screen; the viewer's window takes a part of it.
 SCREEN = (1280, 800)
@@ -84,7 +84,7 @@ def viewer_env(display: str | None) -> dict[str, str]:
 @contextmanager
 def viewer_process(display: str, *args: str) -> Iterator[subprocess.Popen[str]]:
     process = subprocess.Popen(
-        [sys.executable, "-m", "evolution.viewer", *args],
+        [sys.executable, "-m", "evolution.lab.viewer", *args],
         env=viewer_env(display), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     try:
@@ -292,7 +292,7 @@ def test_no_display_fails_in_one_line(
 def test_no_display_from_the_command_line() -> None:
     """The whole program: no traceback, one line, status 2."""
     result = subprocess.run(
-        [sys.executable, "-m", "evolution.viewer", "--task", "survival", "--seconds", "2"],
+        [sys.executable, "-m", "evolution.lab.viewer", "--task", "survival", "--seconds", "2"],
         env=viewer_env(None), capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert result.returncode == 2

@@ -50,7 +50,8 @@ from evolution.checkpoint import (
 )
 from evolution.config import LearningConfig, ReproductionConfig
 from evolution.genome import Genome
-from evolution.runner.config import RunConfig
+from evolution.runner.config import RunConfig, run_config_from_record
+from evolution.runner.settings import settings
 from evolution.runner.world_state import capture_world, restore_world
 
 if TYPE_CHECKING:
@@ -242,8 +243,6 @@ def load_run(
         fingerprint = run_fingerprint(
             config, check_integer("seed", seed, 0), policies_id, genomes_identity(initial)
         )
-    from evolution.experiment import run_config_from_record  # imports the runner: not at the top
-
     try:
         state = load_checkpoint(path, kind=kind, fingerprint=fingerprint)
     except CheckpointError as error:
@@ -285,9 +284,6 @@ def load_run(
 def _setting_differences(path: Path, kind: str, config: RunConfig) -> str:
     """The settings in which a checkpoint's run differs from ``config``, in words ("" if it
     cannot be read or none differ: then the seed or the policies do)."""
-    from evolution.experiment import run_config_from_record
-    from evolution.settings import settings
-
     try:
         saved = run_config_from_record(load_checkpoint(path, kind=kind)["config"])
     except (CheckpointError, ValueError, KeyError, TypeError):

@@ -13,6 +13,7 @@ inconsistent run.
 from __future__ import annotations
 
 import dataclasses
+import typing
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,10 +22,7 @@ from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.validation import choice, validate_fields
 from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig
 from cyber_rodent.world import WorldConfig
-from evolution.config import EvolutionConfig
-
-#: The two evolution methods: embodied evolution and the centralised GA baseline.
-METHODS = ("ee", "ce")
+from evolution.config import METHODS, EvolutionConfig
 
 #: Fields that EvolutionConfig and SurvivalConfig share; they must be equal in a run.
 SHARED_ENERGY_FIELDS = ("initial_energy", "max_energy", "max_recharge_steps")
@@ -51,7 +49,7 @@ class RunConfig:
         profile: optional hardware-like profile (:mod:`cyber_rodent.profiles`). The runner
             applies its range-sensor noise and actuator differences; its field and vision
             parts must already be in ``world`` and ``camera`` (build such a config with
-            :func:`evolution.transfer.hardware_run_config`), which is checked here. None (the
+            :func:`evolution.lab.transfer.hardware_run_config`), which is checked here. None (the
             default): the plain simulation.
 
     Raises:
@@ -110,13 +108,13 @@ class RunConfig:
             raise ValueError(
                 f"profile.field ({layout.n_robots} robots, {layout.n_packs} packs) must match "
                 f"world ({self.world.n_robots} robots, {self.world.n_packs} packs); build the "
-                "config with evolution.transfer.hardware_run_config"
+                "config with evolution.lab.transfer.hardware_run_config"
             )
         if profile.vision.enabled and self.camera.noise != profile.vision.noise():
             raise ValueError(
                 f"profile.vision ({profile.vision.noise()}) must equal camera.noise "
                 f"({self.camera.noise}); build the config with "
-                "evolution.transfer.hardware_run_config"
+                "evolution.lab.transfer.hardware_run_config"
             )
 
     def replace(self, **changes: Any) -> RunConfig:
@@ -134,3 +132,44 @@ class RunConfig:
             if "world" not in changes:
                 changes["world"] = dataclasses.replace(self.world, n_robots=evo.n_robots)
         return dataclasses.replace(self, **changes)
+
+
+def run_config_from_record(data: object) -> RunConfig:
+    """Rebuild a :class:`~evolution.runner.RunConfig` from its ``dataclasses.asdict`` form.
+
+    Raises:
+        ValueError: ``data`` is not such a form, or a value its field refuses.
+    """
+    if not isinstance(data, dict):
+        raise ValueError(f"run.json: config must be a JSON object, got {type(data).__name__}")
+    try:
+        config: RunConfig = _dataclass_from_dict(RunConfig, data)
+    except TypeError as err:
+        raise ValueError(f"run.json: malformed config ({err})") from None
+    return config
+
+
+def _dataclass_from_dict(cls: type, values: dict[str, Any]) -> Any:
+    """Inverse of ``dataclasses.asdict`` for frozen config trees (nested dataclasses, tuples)."""
+    hints = typing.get_type_hints(cls)
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = set(values) - names
+    if unknown:
+        raise ValueError(f"run.json: unknown {cls.__name__} field(s) {sorted(unknown)}")
+    kwargs = {}
+    for name, value in values.items():
+        nested = _dataclass_in(hints[name])
+        if isinstance(value, dict) and nested is not None:
+            value = _dataclass_from_dict(nested, value)
+        elif isinstance(value, list):
+            value = tuple(value)
+        kwargs[name] = value
+    return cls(**kwargs)
+
+
+def _dataclass_in(hint: Any) -> type | None:
+    """The dataclass in a field's type hint (``X`` or ``X | None``), if any."""
+    for candidate in (hint, *typing.get_args(hint)):
+        if isinstance(candidate, type) and dataclasses.is_dataclass(candidate):
+            return candidate
+    return None

@@ -14,10 +14,11 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from cyber_rodent.validation import check_integer
+from evolution.lab.transfer import fittest_individuals
 
 if TYPE_CHECKING:
+    from evolution.lab.transfer import Individual
     from evolution.scheduler import TimeSharingScheduler
-    from evolution.transfer import Individual
 
 
 @dataclass(frozen=True)
@@ -62,10 +63,9 @@ def ranked_candidates(
 ) -> tuple[list[Individual], str]:
     """Every candidate of a checkpoint, fittest first, and what was ranked.
 
-    The ranking is :func:`evolution.transfer.fittest_individuals`' (the lives of the last closed
+    The ranking is :func:`evolution.lab.transfer.fittest_individuals`' (the lives of the last closed
     generation, or the living population without one, docs/design.md §9.25).
     """
-    from evolution.transfer import fittest_individuals
 
     lives = scheduler.lives_of(generation) if generation is not None else []
     if lives:

@@ -28,8 +28,8 @@ import numpy as np
 import pandas as pd
 
 from cyber_rodent.atomic import atomic_output
-from evolution.api import LEARNING_FILE, STATISTICS_FILE
-from evolution.figures import save_figure, styled_pyplot
+from evolution.lab.api import LEARNING_FILE, STATISTICS_FILE
+from evolution.lab.figures import save_figure, styled_pyplot
 
 #: The learning parameters drawn, with their axis labels.
 META_LABELS = {

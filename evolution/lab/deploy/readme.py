@@ -1,6 +1,6 @@
 """The ``README.md`` of a deployment bundle, rendered from its ``bundle.json`` record only.
 
-Rendering from the record (:func:`evolution.deploy.spec.bundle_spec`) and nothing else means
+Rendering from the record (:func:`evolution.lab.deploy.spec.bundle_spec`) and nothing else means
 the README cannot state a number the bundle does not carry. The sections a robot engineer
 needs, in order: the control period, the robot frame and sign conventions, the sensors, every
 input's normalisation, the controller, the wheel commands, how to load the behaviours (runnable

@@ -1,138 +1,36 @@
-"""Sweeps over settings: the cells of a grid, where their runs live, and how cells compare.
+"""How the cells of a grid sweep compare, on their final generations.
 
-``cyber-rodent sweep --grid survival.reflex_max_steps=4,8,16 --grid
-survival.mate_consecutive_steps=1,3`` runs every cell of the product (here 3 × 2) for every
-method and seed. A cell is one combination of grid values; its runs live in
-``<sweep>/<cell name>/<method>-seed<NNN>/`` and the sweep's ``grid.json`` lists the cells with
-their settings, so what a directory holds never has to be parsed from its name.
-
-Cells are compared on their final generations: each run contributes its mean over its last
-``window`` generations (one generation's mean over a handful of completed agents is noisy), and a
-cell reports the mean and standard deviation of those run means over its seeds, per method.
+Each run contributes its mean over its last ``window`` generations (one generation's mean over a
+handful of completed agents is noisy), and a cell reports the mean and standard deviation of
+those run means over its seeds, per method (``cells.csv``, ``cells.{png,pdf}``).
 """
 
 from __future__ import annotations
 
-import itertools
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from cyber_rodent.atomic import atomic_output, write_text
+from cyber_rodent.atomic import atomic_output
+from evolution.lab.figures import METHOD_STYLE, save_figure, styled_pyplot
+from evolution.lab.grid import GRID_FILE, cells, read_grid
+from evolution.lab.sweep import load_sweep
 
-GRID_FILE = "grid.json"
 #: Generations at the end of each run that a cell comparison averages over, by default.
 DEFAULT_WINDOW = 10
 #: The per-run quantities a cell comparison reports.
 COMPARED_COLUMNS = ("batteries_mean", "matings_mean", "completed")
-
-Grid = tuple[tuple[str, tuple[Any, ...]], ...]
-
-
-@dataclass(frozen=True)
-class Cell:
-    """One combination of grid values.
-
-    Attributes:
-        name: the directory name, e.g. ``reflex_max_steps=4,mate_consecutive_steps=1``.
-        settings: the grid's values in this cell, by dotted key.
-    """
-
-    name: str
-    settings: Mapping[str, Any]
-
-
-def format_value(value: Any) -> str:
-    """A setting's value as written in a cell name and on the command line."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return str(value)
-
-
-def cells(grid: Grid) -> tuple[Cell, ...]:
-    """Every cell of ``grid`` (the product of its axes, in the order given).
-
-    A cell is named by each axis's field name (the full dotted key where two axes share a
-    field name) and value.
-    """
-    if not grid:
-        return ()
-    keys = [key for key, _ in grid]
-    fields = [key.rpartition(".")[2] for key in keys]
-    labels = [f if fields.count(f) == 1 else k for f, k in zip(fields, keys, strict=True)]
-    found = []
-    for combination in itertools.product(*(values for _, values in grid)):
-        name = ",".join(
-            f"{label}={format_value(v)}" for label, v in zip(labels, combination, strict=True)
-        )
-        found.append(Cell(name, dict(zip(keys, combination, strict=True))))
-    return tuple(found)
-
-
-def grid_record(grid: Grid) -> dict[str, Any]:
-    """The content of ``grid.json``."""
-    return {
-        "grid": [[key, list(values)] for key, values in grid],
-        "cells": [{"name": c.name, "settings": dict(c.settings)} for c in cells(grid)],
-    }
-
-
-def read_grid(path: str | os.PathLike[str]) -> Grid | None:
-    """The grid of the sweep at ``path`` (None if it is not a grid sweep).
-
-    Raises:
-        ValueError: ``grid.json`` is unreadable or not a grid record (the message names it).
-    """
-    file = Path(path) / GRID_FILE
-    if not file.exists():
-        return None
-    try:
-        record = json.loads(file.read_text())
-        return tuple((str(key), tuple(values)) for key, values in record["grid"])
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        raise ValueError(f"{file}: not a grid record ({err})") from None
-
-
-def check_grid(path: str | os.PathLike[str], grid: Grid) -> None:
-    """Refuse to continue a sweep directory with a different grid than it was started with.
-
-    Raises:
-        ValueError: the directory's ``grid.json`` names another grid (or none where one is
-            given, or one where none is given).
-    """
-    root = Path(path)
-    if not root.is_dir():
-        return
-    existing = read_grid(root)
-    holds_runs = any(p.is_dir() for p in root.iterdir())
-    if existing is None and (not grid or not holds_runs):
-        return
-    if existing != grid:
-        raise ValueError(
-            f"{root} holds a sweep over another grid ({GRID_FILE}); use a new --out or the "
-            "same --grid values"
-        )
-
-
-def write_grid(path: str | os.PathLike[str], grid: Grid) -> None:
-    """Write ``grid.json`` (atomically) into the sweep directory."""
-    record = grid_record(grid)
-    write_text(Path(path) / GRID_FILE, json.dumps(record, indent=2, default=repr) + "\n")
 
 
 def load_cells(
     path: str | os.PathLike[str],
 ) -> dict[str, tuple[Mapping[str, Any], dict[str, list[pd.DataFrame]]]]:
     """Per cell name: its settings and its runs' statistics tables grouped by method."""
-    from evolution.sweep import load_sweep
-
     root = Path(path)
     grid = read_grid(root)
     if grid is None:
@@ -179,8 +77,6 @@ def compare_cells(
 
 def plot_cells(table: pd.DataFrame, out_base: str | os.PathLike[str]) -> list[Path]:
     """Batteries, matings and completed agents per cell and method (mean ± std over seeds)."""
-    from evolution.figures import METHOD_STYLE, save_figure, styled_pyplot
-
     plt = styled_pyplot()
     names = list(dict.fromkeys(table["cell"]))
     quantities = [("batteries", "batteries per life"), ("matings", "matings per life"),

@@ -3,7 +3,7 @@
 Each run is independent and its result depends only on its config and seed, so a sweep gives
 identical tables whichever executor or how many workers ran it. Every run has its own run
 directory ``<out>/<method>-seed<NNN>`` (``<out>/<cell>/<method>-seed<NNN>`` in a sweep over a
-grid of settings, :mod:`evolution.grid`) holding what :func:`evolution.api.run` writes there
+grid of settings, :mod:`evolution.lab.grid`) holding what :func:`evolution.lab.api.run` writes there
 (``statistics.csv``, ``statistics_per_robot.csv``, ``events.csv``, ``run.json``, the newest
 :data:`KEEP_CHECKPOINTS` checkpoints), checkpointed every generation. A run whose worker fails
 or is killed is submitted again and continues from its last checkpoint, so a retry costs at
@@ -27,7 +27,7 @@ Ray task each (:func:`advance_run`). The task gets the run's newest checkpoint a
 driver (none for a new run), rebuilds the runner from it in a temporary directory of its own,
 runs the chunk there, and returns what it wrote as bytes: its new checkpoints, the statistics
 tables, ``run.json``, and ``events.csv`` once the run is complete. The driver writes them
-atomically into the run directory in the order :func:`evolution.api.run` does and prunes the
+atomically into the run directory in the order :func:`evolution.lab.api.run` does and prunes the
 checkpoints alike, then submits the run's next chunk; so ``out`` ends with the same files, byte
 for byte, as the local backend writes, and ``cyber-rodent resume`` or ``sweep --resume``
 continue from it. A chunk whose node or worker is lost, whose returned object is lost, or which
@@ -68,10 +68,25 @@ from typing import Any, NamedTuple
 import pandas as pd
 
 from cyber_rodent.validation import check_integer, choice, validate_fields
-from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS
-from evolution.grid import Cell, Grid, cells
+from evolution.checkpoint import CheckpointError
+from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS, METHODS
+from evolution.lab.api import (
+    CHECKPOINT_DIR,
+    EVENTS_FILE,
+    RUN_FILE,
+    check_run_config,
+    learning_table,
+    make_config,
+    robot_table,
+    run,
+    run_record,
+    write_tables,
+)
+from evolution.lab.grid import Cell, Grid, cells, check_grid, write_grid
+from evolution.runner import EvolutionRunner, default_policies, latest_checkpoint
+from evolution.runner.checkpoints import prune_checkpoints
+from evolution.runner.settings import merge
 
-METHODS = ("ee", "ce")
 EXECUTORS = ("local", "ray")
 POLICIES = ("trained", "reactive")
 #: Environment for worker processes: one BLAS / llvmpipe thread each, since runs already fill
@@ -94,7 +109,7 @@ LEARNING_STEP_COST = 1.2
 #: replacements of dead agents have lived too (README, Performance: 1.40-1.50 M steps for 120
 #: generations of 25 lives of 400 steps, ~1.2x); CE's lives are the generation (~0.95x).
 STEPS_PER_LIFE = {"ee": 1.2, "ce": 0.95}
-#: Newest checkpoints each run directory keeps (:func:`evolution.api.run`'s default).
+#: Newest checkpoints each run directory keeps (:func:`evolution.lab.api.run`'s default).
 KEEP_CHECKPOINTS = 3
 #: Generations one Ray task advances its run by: a lost node costs at most this much of each
 #: run it held, and every chunk pays one checkpoint's transfer and one runner rebuild.
@@ -117,7 +132,7 @@ class SweepSpec:
         methods: subset of ``("ee", "ce")``.
         seeds: the seeds, each run once per method (and cell).
         generations: generations per run.
-        overrides: settings passed to every run (see :func:`evolution.api.make_config`).
+        overrides: settings passed to every run (see :func:`evolution.lab.api.make_config`).
         policies: basic behaviours: ``"trained"`` (the shipped values) or ``"reactive"`` (the
             hand-written baseline).
         grid: axes of settings, ``((dotted key, values), ...)``; every cell of their product
@@ -174,7 +189,6 @@ class SweepSpec:
 
     def settings_of(self, cell: str) -> dict[str, Any]:
         """The settings of the runs in ``cell``: the sweep's overrides, then the cell's."""
-        from evolution.settings import merge
 
         chosen = next(c for c in self.cells if c.name == cell)
         return merge(self.overrides, chosen.settings)
@@ -185,7 +199,6 @@ class SweepSpec:
         Raises:
             ValueError: the first setting a config refuses (one line naming the key).
         """
-        from evolution.api import check_run_config, make_config
 
         for c in self.cells:
             for method in self.methods:
@@ -233,7 +246,6 @@ def run_one(
 ) -> pd.DataFrame:
     """Run (or resume) one sweep member in its run directory; the local worker entry point."""
     from behaviours import BehaviourPolicies
-    from evolution.api import run
 
     chosen = BehaviourPolicies.reactive() if policies == "reactive" else None
     return run(
@@ -286,7 +298,7 @@ class ChunkResult(NamedTuple):
 def advance_run(task: RunChunk) -> ChunkResult:
     """Advance one run by a chunk of generations in a temporary directory; the Ray task.
 
-    Writes exactly what :func:`evolution.api.run` writes in a run directory, in a directory of
+    Writes exactly what :func:`evolution.lab.api.run` writes in a run directory, in a directory of
     its own that is deleted on return, and returns those files: the driver stores them, so the
     worker needs no filesystem shared with it.
 
@@ -294,19 +306,6 @@ def advance_run(task: RunChunk) -> ChunkResult:
         CheckpointError: the checkpoint is corrupt or belongs to another run.
     """
     from behaviours import BehaviourPolicies
-    from evolution.api import (
-        CHECKPOINT_DIR,
-        EVENTS_FILE,
-        RUN_FILE,
-        check_run_config,
-        learning_table,
-        make_config,
-        robot_table,
-        run_record,
-        write_tables,
-    )
-    from evolution.checkpoint import CheckpointError
-    from evolution.runner import EvolutionRunner, default_policies
 
     config = make_config(task.method, **task.overrides)
     check_run_config(config)
@@ -426,7 +425,6 @@ def projected_seconds(spec: SweepSpec, workers: int) -> float:
     steps, its robots and rendered vision; the runs share ``workers`` cores. Runs are not all
     alike (deaths shorten lives, docking costs more physics): this is the order of magnitude.
     """
-    from evolution.api import make_config
 
     default = make_config("ee")
     default_physics = default.survival.control_dt / default.world.timestep
@@ -543,7 +541,6 @@ def sweep(
         raise ValueError(f"max_retries must be an integer >= 0, got {max_retries!r}")
     check_integer("keep_checkpoints", keep_checkpoints, 0)
     check_integer("chunk_generations", chunk_generations, 1)
-    from evolution.grid import check_grid, write_grid
 
     spec.check()  # every cell's settings, before anything runs
     if executor == "ray":
@@ -637,8 +634,6 @@ class _RayPlan(NamedTuple):
 
     def next_chunk(self, member: SweepRun) -> RunChunk:
         """The task that advances ``member`` from the newest checkpoint in its run directory."""
-        from evolution.api import CHECKPOINT_DIR
-        from evolution.runner import latest_checkpoint
 
         newest = latest_checkpoint(run_dir(self.out, *member) / CHECKPOINT_DIR)
         return RunChunk(
@@ -655,10 +650,8 @@ class _RayPlan(NamedTuple):
 
     def store(self, member: SweepRun, result: ChunkResult) -> None:
         """Write a chunk's files into ``member``'s run directory, atomically, in the order
-        :func:`evolution.api.run` writes them (checkpoints, tables, records), then prune."""
+        :func:`evolution.lab.api.run` writes them (checkpoints, tables, records), then prune."""
         from cyber_rodent.atomic import write_bytes
-        from evolution.api import CHECKPOINT_DIR, RUN_FILE
-        from evolution.runner.checkpoints import prune_checkpoints
 
         directory = run_dir(self.out, *member)
 

@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from cyber_rodent.atomic import atomic_output
+from evolution.lab.comparison import completions
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -278,7 +279,7 @@ def plot_completions(
 
     Fig. 6 averages over these agents only, so their number says how much each of its points
     rests on; the dashed line is the full lifetimes they are a share of. Statistics as in
-    :func:`evolution.comparison.completions` (standard deviation over runs with ``ddof=1``).
+    :func:`evolution.lab.comparison.completions` (standard deviation over runs with ``ddof=1``).
 
     Args:
         runs: statistics tables by method, e.g. ``{"ee": [...], "ce": [...]}``.
@@ -287,7 +288,6 @@ def plot_completions(
     Returns:
         The written file paths.
     """
-    from evolution.comparison import completions
 
     order = [m for m in METHOD_STYLE if m in runs] + [m for m in runs if m not in METHOD_STYLE]
     per_method = {m: completions(runs[m]) for m in order}

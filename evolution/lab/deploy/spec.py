@@ -2,7 +2,7 @@
 
 Every number comes from the run's resolved :class:`~evolution.runner.RunConfig`, from
 :mod:`cyber_rodent.constants`, from the command table or from the robot's compiled MJCF model
-(sensor positions); the README (:mod:`evolution.deploy.readme`) is rendered from this dict
+(sensor positions); the README (:mod:`evolution.lab.deploy.readme`) is rendered from this dict
 only, so the two cannot disagree. The meaning of the rules is docs/design.md §4 (the robot),
 §5 (the paper's rules) and §9 (the choices where the paper is silent).
 """
@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from evolution.controller import INPUT_NAMES
+from evolution.genome import RECHARGE, SELECTION
 from evolution.runner.config import RunConfig
 
 #: Bundle layout version (``bundle.json`` ``format``); the reference step checks it.
@@ -93,7 +95,6 @@ def robot_geometry() -> dict[str, Any]:
 def _controller_inputs(config: RunConfig, max_distance: float) -> list[dict[str, Any]]:
     """The 12 controller inputs in order, each with its normalisation spelled out."""
     from cyber_rodent import constants as C
-    from evolution.controller import INPUT_NAMES
 
     evo = config.evolution
     rules = {
@@ -204,7 +205,7 @@ def bundle_spec(
     selection: dict[str, Any] | None = None,
     provenance: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The ``bundle.json`` record of a bundle (see :mod:`evolution.deploy`).
+    """The ``bundle.json`` record of a bundle (see :mod:`evolution.lab.deploy`).
 
     Args:
         config: the run's resolved configuration (every rule's number comes from it).
@@ -220,8 +221,6 @@ def bundle_spec(
     from cyber_rodent import constants as C
     from cyber_rodent.commands import COMMAND_SET_VERSION, WHEEL_COMMANDS
     from cyber_rodent.vision.types import CLASS_NAMES, DEFAULT_MAX_DISTANCE
-    from evolution.controller import INPUT_NAMES
-    from evolution.genome import RECHARGE, SELECTION
 
     evo, survival, camera = config.evolution, config.survival, config.camera
     max_distance = float(DEFAULT_MAX_DISTANCE)

@@ -2,7 +2,7 @@
 
 ::
 
-    from evolution import run
+    from evolution.lab import run
     table = run(method="ee", generations=5, seed=0)  # a DataFrame, one row per generation
     table = run(method="ce", generations=5, seed=0, out_dir="runs/ce0", population_size=20)
 
@@ -49,14 +49,14 @@ from evolution.runner import (
     latest_checkpoint,
     policy_identity,
 )
-from evolution.settings import FLAT_KEYS, apply, changed, settings
+from evolution.runner.settings import FLAT_KEYS, apply, changed, settings
 
 if TYPE_CHECKING:
     import pandas as pd
 
 #: Keyword overrides :func:`run` and :func:`make_config` accept: every dotted key of
-#: :mod:`evolution.settings` (``survival.mate_distance``) and the flat names of earlier versions
-#: (``population_size``).
+#: :mod:`evolution.runner.settings` (``survival.mate_distance``) and the flat names of earlier
+#: versions (``population_size``).
 OVERRIDES = tuple(sorted({*settings(), *FLAT_KEYS}))
 
 STATISTICS_FILE = "statistics.csv"
@@ -81,7 +81,7 @@ def make_config(
         config: a base run or evolution config.
         **overrides: settings by dotted key (``**{"survival.mate_distance": 0.4}``) or by the
             flat names of earlier versions (``population_size=20``); see
-            :mod:`evolution.settings`.
+            :mod:`evolution.runner.settings`.
 
     Raises:
         ValueError: an unknown method or override name (the message names the closest valid

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from cyber_rodent.atomic import atomic_output
-from evolution.sweep import METHODS
+from evolution.config import METHODS
 
 #: An inclusive range of generations ``(first, last)``.
 Window = tuple[int, int]
@@ -502,7 +502,7 @@ def summary_table(
     window is clipped to the generations every run reached.
 
     Args:
-        runs: statistics tables by method, e.g. :func:`evolution.sweep.load_sweep`'s result; a
+        runs: statistics tables by method, e.g. :func:`evolution.lab.sweep.load_sweep`'s result; a
             missing method leaves its columns empty (runs 0, NaN).
         window: the late window of the comparison.
         rise: the early window of the rise.

@@ -1,13 +1,13 @@
 """Experiments as a user runs them: run directories, config files, ``--set`` overrides, resume,
 figures and videos. The command line (``cyber-rodent evolve|resume|sweep|plot|render``) is a
 thin layer over this module; settings (``--set``, ``--config``, ``--grid``) are read by
-:mod:`evolution.settings`.
+:mod:`evolution.runner.settings`.
 
 A run directory holds everything needed to tell what produced what:
 
 - ``run.json``: the resolved config (human-readable JSON), the settings that differ from the
   paper's defaults by dotted key, seed, behaviour policies, target generations, package version
-  and git commit, and headline numbers (written by :func:`evolution.api.run`);
+  and git commit, and headline numbers (written by :func:`evolution.lab.api.run`);
 - ``versions.json``: Python, this package and its dependencies' versions, the command line
   (written with ``run.json`` once the run is built);
 - ``statistics.csv``: the per-generation statistics table (pandas-readable);
@@ -23,7 +23,6 @@ is resumed with :func:`resume_run`, and its result is identical to an uninterrup
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as _dt
 import json
 import os
@@ -31,7 +30,6 @@ import platform
 import shlex
 import shutil
 import sys
-import typing
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -41,7 +39,9 @@ import pandas as pd
 from behaviours import BehaviourPolicies
 from cyber_rodent.atomic import TEMP_MARK, atomic_output, write_text
 from cyber_rodent.validation import check_integer
-from evolution.api import (
+from evolution.checkpoint import read_header
+from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS
+from evolution.lab.api import (
     CHECKPOINT_DIR,
     RUN_FILE,
     STATISTICS_FILE,
@@ -49,9 +49,21 @@ from evolution.api import (
     check_run_config,
     holds_a_run,
     make_config,
+    run,
 )
-from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS
-from evolution.runner import EvolutionRunner, RunConfig, latest_checkpoint, policy_identity
+from evolution.lab.cells import write_cell_comparison
+from evolution.lab.comparison import write_report
+from evolution.lab.figures import plot_completions, plot_fig6, summarise_runs
+from evolution.lab.grid import cells, read_grid
+from evolution.lab.learning_figures import load_learning, write_learning_report
+from evolution.lab.sweep import load_sweep
+from evolution.lab.video import MAX_FRAMES, VideoConfig, render_video
+from evolution.runner import (
+    EvolutionRunner,
+    latest_checkpoint,
+    policy_identity,
+    run_config_from_record,
+)
 
 FIGURES_DIR = "figures"
 POLICY_NAMES = ("trained", "reactive")
@@ -263,10 +275,9 @@ def evolve(
     from zero die before they mate).
 
     Everything is validated before the directory is touched, and the directory is created
-    only once the run is built (:func:`evolution.api.run` writes ``versions.json`` and
+    only once the run is built (:func:`evolution.lab.api.run` writes ``versions.json`` and
     ``run.json`` then), so bad input or a failed start leaves nothing behind.
     """
-    from evolution.api import run
 
     overrides = dict(overrides or {})
     check_run_config(make_config(method, **overrides))  # method, every override, their sizes
@@ -322,7 +333,6 @@ def resume_run(
     The config, seed and policies come from the run's newest checkpoint (or, before the first
     checkpoint, from ``run.json``), so the result is identical to an uninterrupted run.
     """
-    from evolution.api import run
 
     path = Path(out)
     if generations is not None:
@@ -372,21 +382,6 @@ def resume_run(
     return path, table
 
 
-def run_config_from_record(data: object) -> RunConfig:
-    """Rebuild a :class:`~evolution.runner.RunConfig` from its ``dataclasses.asdict`` form.
-
-    Raises:
-        ValueError: ``data`` is not such a form, or a value its field refuses.
-    """
-    if not isinstance(data, dict):
-        raise ValueError(f"run.json: config must be a JSON object, got {type(data).__name__}")
-    try:
-        config: RunConfig = _dataclass_from_dict(RunConfig, data)
-    except TypeError as err:
-        raise ValueError(f"run.json: malformed config ({err})") from None
-    return config
-
-
 def rerun_command(record: Path, flag: str) -> str:
     """The command recorded in ``record`` (``versions.json`` or ``sweep.json``) with ``flag``
     (``--resume`` or ``--force``) in place of the other, for a hint; words if none is recorded."""
@@ -402,32 +397,6 @@ def rerun_command(record: Path, flag: str) -> str:
     return "cyber-rodent " + shlex.join([*args, flag])
 
 
-def _dataclass_from_dict(cls: type, values: dict[str, Any]) -> Any:
-    """Inverse of ``dataclasses.asdict`` for frozen config trees (nested dataclasses, tuples)."""
-    hints = typing.get_type_hints(cls)
-    names = {f.name for f in dataclasses.fields(cls)}
-    unknown = set(values) - names
-    if unknown:
-        raise ValueError(f"run.json: unknown {cls.__name__} field(s) {sorted(unknown)}")
-    kwargs = {}
-    for name, value in values.items():
-        nested = _dataclass_in(hints[name])
-        if isinstance(value, dict) and nested is not None:
-            value = _dataclass_from_dict(nested, value)
-        elif isinstance(value, list):
-            value = tuple(value)
-        kwargs[name] = value
-    return cls(**kwargs)
-
-
-def _dataclass_in(hint: Any) -> type | None:
-    """The dataclass in a field's type hint (``X`` or ``X | None``), if any."""
-    for candidate in (hint, *typing.get_args(hint)):
-        if isinstance(candidate, type) and dataclasses.is_dataclass(candidate):
-            return candidate
-    return None
-
-
 # --- figures and videos ------------------------------------------------------------------------
 def plot_run_dir(
     path: str | os.PathLike[str], out: str | os.PathLike[str] | None = None
@@ -435,7 +404,7 @@ def plot_run_dir(
     """Draw the figures of a run directory or of a sweep directory into ``<path>/figures``.
 
     A sweep over a grid of settings gets each cell's figures in ``<cell>/figures`` and the
-    comparison of its cells in ``figures/cells.{csv,png,pdf}`` (:mod:`evolution.grid`).
+    comparison of its cells in ``figures/cells.{csv,png,pdf}`` (:mod:`evolution.lab.grid`).
 
     Args:
         path: a run directory, a sweep directory, or a directory of published run tables.
@@ -444,7 +413,6 @@ def plot_run_dir(
     Raises:
         ValueError: no statistics found under ``path``.
     """
-    from evolution.grid import cells, read_grid, write_cell_comparison
 
     root = Path(path)
     target = Path(out) if out is not None else root / FIGURES_DIR
@@ -459,7 +427,6 @@ def plot_run_dir(
             continue  # a cell none of whose runs has finished a generation yet
     if not written:
         raise ValueError(f"no {STATISTICS_FILE} found in the cells of {root}")
-    from evolution.learning_figures import load_learning, write_learning_report
 
     learning = {cell.name: load_learning(root / cell.name) for cell in cells(grid)}
     return (
@@ -468,12 +435,9 @@ def plot_run_dir(
 
 
 def _plot_methods(root: Path, figures: Path) -> list[Path]:
-    """Fig. 6, its summary, the EE vs CE statistics (:mod:`evolution.comparison`) and the
+    """Fig. 6, its summary, the EE vs CE statistics (:mod:`evolution.lab.comparison`) and the
     completed agents per generation for the runs of one directory (a run, a sweep or a cell),
     into ``figures``."""
-    from evolution.comparison import write_report
-    from evolution.figures import plot_completions, plot_fig6, summarise_runs
-    from evolution.sweep import load_sweep
 
     runs = load_sweep(root)
     if not any(runs.values()):
@@ -489,7 +453,6 @@ def _plot_methods(root: Path, figures: Path) -> list[Path]:
         written.append(summary)
         written += write_report(chosen, figures)
         written += plot_completions(chosen, figures / "completions")
-    from evolution.learning_figures import load_learning, write_learning_report
 
     written += write_learning_report({root.name: load_learning(root)}, figures)
     return written
@@ -508,11 +471,9 @@ def render_run(
     """An MP4 continuing a run from a checkpoint file or a run directory's newest checkpoint.
 
     The run directory is not modified: the video's steps happen in memory only. ``video``:
-    further :class:`evolution.video.VideoConfig` fields (``width``, ``height``, ``camera``).
+    further :class:`evolution.lab.video.VideoConfig` fields (``width``, ``height``, ``camera``).
     """
     from cyber_rodent.render import check_writable_output
-    from evolution.checkpoint import read_header
-    from evolution.video import MAX_FRAMES, VideoConfig, render_video
 
     config = VideoConfig(fps=fps, steps_per_frame=steps_per_frame, **video)
     if isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= MAX_FRAMES:

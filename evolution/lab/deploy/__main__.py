@@ -1,4 +1,4 @@
-"""``python -m evolution.deploy --from RUN_DIR --out DIR``: bundle a run's fittest mated agents.
+"""``python -m evolution.lab.deploy --from RUN_DIR --out DIR``: bundle a run's fittest mated agents.
 
 :func:`add_arguments` and :func:`run` are the command's two halves, so another command line
 (``cyber-rodent``) can mount it as a subcommand; :func:`main` is the standalone program. Every
@@ -11,6 +11,13 @@ from __future__ import annotations
 import argparse
 import sys
 from typing import Any
+
+from evolution.lab.api import CHECKPOINT_DIR
+from evolution.lab.deploy import check_bundle_dir, write_bundle
+from evolution.lab.deploy.selection import choose_agents, ranked_candidates
+from evolution.lab.experiment import policies_for_identity, read_run_record
+from evolution.lab.transfer import checkpoint_of_generation, ranked_generation
+from evolution.runner import EvolutionRunner, latest_checkpoint
 
 #: Exit status of every user error.
 EXIT_USAGE = 2
@@ -63,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     that checkpoint, ``--top`` does not exceed the agents ranked, and at least one agent
     qualifies.
     """
-    prog = getattr(args, "deploy_prog", "evolution.deploy")
+    prog = getattr(args, "deploy_prog", "evolution.lab.deploy")
     try:
         return _run(args, prog)
     except (OSError, ValueError) as err:
@@ -76,12 +83,6 @@ def _run(args: argparse.Namespace, prog: str) -> int:
 
     from behaviours.greedy_policy import GreedyPolicy
     from behaviours.inputs import BEHAVIOUR_NAMES
-    from evolution.api import CHECKPOINT_DIR
-    from evolution.deploy import check_bundle_dir, write_bundle
-    from evolution.deploy.selection import choose_agents, ranked_candidates
-    from evolution.experiment import policies_for_identity, read_run_record
-    from evolution.runner import EvolutionRunner, latest_checkpoint
-    from evolution.transfer import checkpoint_of_generation, ranked_generation
 
     top = _integer("--top", args.top, 1)
     generation = None if args.generation is None else _integer("--generation", args.generation, 0)
@@ -166,7 +167,7 @@ def _run(args: argparse.Namespace, prog: str) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m evolution.deploy",
+        prog="python -m evolution.lab.deploy",
         description="Write a deployment bundle (exported behaviours, controller weights, the "
         "robot's conventions and survival bookkeeping in bundle.json and README.md, a "
         "plain-Python reference step) of the fittest agents of a run that mated.",

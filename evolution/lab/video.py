@@ -63,6 +63,8 @@ from cyber_rodent.validation import check_integer, integer, validate_fields
 from cyber_rodent.vision import CameraConfig
 from cyber_rodent.vision.projection import OmniProjection
 from cyber_rodent.vision.rendering import OmniRenderer
+from evolution.lab.api import CHECKPOINT_DIR, RUN_FILE
+from evolution.runner import list_checkpoints
 
 if TYPE_CHECKING:
     from evolution.runner import EvolutionRunner
@@ -171,8 +173,6 @@ def start_checkpoint(run_dir: str | os.PathLike[str], generation: int) -> Path:
         ValueError: the run directory kept no checkpoint of that generation; the message gives
             the generations it has.
     """
-    from evolution.api import CHECKPOINT_DIR
-    from evolution.runner import list_checkpoints
 
     kept = list_checkpoints(Path(run_dir) / CHECKPOINT_DIR)
     found = {int(p.stem.split("_")[-1]): p for p in kept}
@@ -192,7 +192,6 @@ def start_checkpoint(run_dir: str | os.PathLike[str], generation: int) -> Path:
 def run_robot_count(source: str | os.PathLike[str]) -> int | None:
     """The robot count that a run directory (or a checkpoint inside one) records in its
     ``run.json``; None when there is no readable record (the video checks it again)."""
-    from evolution.api import RUN_FILE
 
     path = Path(source)
     run_dir = path if path.is_dir() else path.parent.parent

@@ -51,7 +51,7 @@ from cyber_rodent.validation import (
     IntegerRule,
     NumberRule,
 )
-from evolution.runner import RunConfig
+from evolution.runner.config import RunConfig
 
 #: Section prefix → (attribute path from the RunConfig, default source of its fields).
 SECTIONS: dict[str, tuple[tuple[str, ...], str]] = {

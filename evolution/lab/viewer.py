@@ -36,7 +36,7 @@ Space      pause / resume
 =========  ====================================================
 
 The window needs an X display (``DISPLAY``; ``xvfb-run`` gives a virtual one). ``--screenshot``
-reads the window back from the X server (:mod:`evolution.window_capture`).
+reads the window back from the X server (:mod:`evolution.lab.window_capture`).
 """
 
 from __future__ import annotations
@@ -56,6 +56,13 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import numpy as np
 
+from evolution.checkpoint import CheckpointError, read_header
+from evolution.lab.api import CHECKPOINT_DIR, RUN_FILE
+from evolution.lab.experiment import policies_by_name, policies_for_identity, read_run_record
+from evolution.lab.video import BEHAVIOUR_STYLE
+from evolution.lab.window_capture import CaptureError, capture_own_window, display_problem
+from evolution.runner import EvolutionRunner, latest_checkpoint, policy_identity
+
 if TYPE_CHECKING:
     from behaviours import BehaviourInputs, BehaviourPolicies
     from cyber_rodent.survival import SurvivalWorld
@@ -72,7 +79,7 @@ MAX_SPEED = 100.0
 #: GLFW key codes (what MuJoCo's viewer hands to the key callback).
 KEY_SPACE, KEY_RIGHT, KEY_MINUS, KEY_EQUAL = 32, 262, 45, 61
 KEY_KP_SUBTRACT, KEY_KP_ADD = 333, 334
-#: Behaviour index of a docked robot (recharging, no behaviour), as in ``evolution.video``.
+#: Behaviour index of a docked robot (recharging, no behaviour), as in ``evolution.lab.video``.
 RECHARGING = -1
 #: Survival task rule: a robot below this share of ``max_energy`` is hungry.
 HUNGRY = 0.5
@@ -137,7 +144,6 @@ class RobotStatus(NamedTuple):
 
 
 def _behaviour_style(index: int) -> tuple[str, tuple[int, int, int]]:
-    from evolution.video import BEHAVIOUR_STYLE
 
     return BEHAVIOUR_STYLE[index]
 
@@ -673,7 +679,6 @@ def _check_display() -> None:
     """Fail early, in one line, where no window can open (X11 platforms)."""
     if not sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
         return
-    from evolution.window_capture import display_problem
 
     problem = display_problem()
     if problem is not None:
@@ -685,10 +690,6 @@ def _check_display() -> None:
 
 def _run_source(args: argparse.Namespace) -> tuple[Path, str, BehaviourPolicies]:
     """The checkpoint, a label and the run's behaviour policies, as ``render`` finds them."""
-    from evolution.api import CHECKPOINT_DIR, RUN_FILE
-    from evolution.checkpoint import read_header
-    from evolution.experiment import policies_by_name, policies_for_identity, read_run_record
-    from evolution.runner import latest_checkpoint, policy_identity
 
     if args.dir is not None:
         directory = Path(args.dir)
@@ -750,7 +751,6 @@ def _plan_source(args: argparse.Namespace) -> Plan:
             raise ViewerError(f"--task needs the shipped trained behaviours: {err}") from None
         label = f"task {task}"
     else:
-        from evolution.checkpoint import CheckpointError
 
         try:
             checkpoint, label, policies = _run_source(args)
@@ -772,7 +772,6 @@ def _make_source(chosen: Plan) -> LiveSource:
     if chosen.task is not None:
         assert chosen.policies is not None
         return TaskSource(chosen.task, chosen.seed, chosen.policies)
-    from evolution.runner import EvolutionRunner
 
     assert chosen.checkpoint is not None
     runner = EvolutionRunner.from_checkpoint(chosen.checkpoint, chosen.policies)
@@ -827,7 +826,6 @@ def run(args: argparse.Namespace) -> int:
 def _save_screenshot(session: Session, path: Path) -> None:
     """What the window shows now, as PNG (read back from the X server)."""
     from cyber_rodent.render import write_png
-    from evolution.window_capture import CaptureError, capture_own_window
 
     time.sleep(SETTLE)  # the viewer's thread draws the last synced state
     try:
@@ -838,7 +836,7 @@ def _save_screenshot(session: Session, path: Path) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The parser of ``python -m evolution.viewer`` (the same options as ``cyber-rodent
+    """The parser of ``python -m evolution.lab.viewer`` (the same options as ``cyber-rodent
     view``)."""
     parser = argparse.ArgumentParser(
         prog="cyber-rodent view",

@@ -43,7 +43,8 @@ import pandas as pd
 from cyber_rodent.atomic import atomic_output, write_text
 from cyber_rodent.profiles import HardwareProfile, apply_field, apply_vision
 from cyber_rodent.validation import check_integer
-from evolution.api import (
+from evolution.genome import Genome
+from evolution.lab.api import (
     CHECKPOINT_DIR,
     EVENTS_FILE,
     ROBOT_STATISTICS_FILE,
@@ -52,7 +53,8 @@ from evolution.api import (
     run_record,
     write_tables,
 )
-from evolution.genome import Genome
+from evolution.lab.experiment import policies_for_identity, read_run_record
+from evolution.lab.figures import plot_per_robot
 from evolution.runner import EvolutionRunner, RunConfig, list_checkpoints
 from evolution.scheduler import TimeSharingScheduler
 
@@ -257,7 +259,6 @@ def transfer(
         ValueError: bad arguments, ``source`` is not a run directory or lacks the generation,
             ``out`` already holds a run.
     """
-    from evolution.experiment import policies_for_identity, read_run_record
 
     top = check_integer("top", top, 1)
     generations = check_integer("generations", generations, 1)
@@ -331,7 +332,6 @@ def transfer(
         per_robot = robot_table(runner)
     figure: list[Path] = []
     if len(per_robot):
-        from evolution.figures import plot_per_robot
 
         label = "hardware-like profile" if profile is not None else "simulation"
         figure = plot_per_robot(

@@ -11,11 +11,11 @@ A bundle is a directory:
   geometry and units, every input's normalisation, the controller, the wheel command table, the
   exact torch version and the load call, the survival bookkeeping a robot runs itself (energy,
   recharging, reflex, time sharing, IR mating), how the agents were chosen and the run's whole
-  resolved config (:mod:`evolution.deploy.spec`);
+  resolved config (:mod:`evolution.lab.deploy.spec`);
 - ``README.md``: the same for a reader, with runnable loading code and the bookkeeping as
-  pseudo-code (:mod:`evolution.deploy.readme`);
+  pseudo-code (:mod:`evolution.lab.deploy.readme`);
 - ``reference_step.py``: a plain-Python reference of one control step that loads the bundle with
-  numpy and torch only (:mod:`evolution.deploy.reference_step`, copied verbatim).
+  numpy and torch only (:mod:`evolution.lab.deploy.reference_step`, copied verbatim).
 
 A bundle is written into a temporary directory beside its destination and renamed into place,
 so a failure never leaves a half-written bundle. :func:`record_decisions` records a simulated
@@ -37,8 +37,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cyber_rodent.atomic import TEMP_MARK, write_text
-from evolution.deploy.spec import BUNDLE_FORMAT, bundle_spec
+from evolution.config import GENOME_LENGTH
 from evolution.genome import Genome
+from evolution.lab.deploy.readme import render_readme
+from evolution.lab.deploy.spec import BUNDLE_FORMAT, bundle_spec
+from evolution.runner.config import RunConfig
 
 if TYPE_CHECKING:
     from behaviours.action_values import ActionValues
@@ -52,7 +55,6 @@ _REFERENCE_SOURCE = Path(__file__).with_name(REFERENCE_FILE)
 
 
 def _genome_matrix(genomes: Sequence[Genome] | np.ndarray) -> np.ndarray:
-    from evolution.config import GENOME_LENGTH
 
     if isinstance(genomes, np.ndarray):
         matrix = np.asarray(genomes, dtype=np.float64)
@@ -154,7 +156,6 @@ def write_bundle(
     from behaviours.definitions import load_values
     from behaviours.export import export_greedy_policy
     from behaviours.inputs import BEHAVIOUR_NAMES
-    from evolution.runner.config import RunConfig
 
     matrix = _genome_matrix(genomes)
     if config is None:
@@ -178,7 +179,6 @@ def write_bundle(
         )
         text = json.dumps(spec, indent=2, sort_keys=True, default=repr) + "\n"
         write_text(temp / BUNDLE_FILE, text)
-        from evolution.deploy.readme import render_readme
 
         write_text(temp / README_FILE, render_readme(json.loads(text)))
     return root
