@@ -227,17 +227,23 @@ def _cmd_evolve(args: argparse.Namespace) -> int:
     _report_run(path, table)
     if args.generations < 120:
         print(
-            f"This was a short run ({args.generations} generations). The paper's Fig. 6 "
-            f"experiment (20 seeds x EE and CE x 120 generations):\n  {experiment.PAPER_COMMAND}"
+            f"This was a short run ({_count(args.generations, 'generation')}). The paper's "
+            "Fig. 6 experiment (20 seeds x EE and CE x 120 generations):\n  "
+            f"{experiment.PAPER_COMMAND}"
         )
     return 0
+
+
+def _count(n: int, noun: str) -> str:
+    """``1 generation``, ``2 generations``."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 def _report_run(path: Path, table: pd.DataFrame) -> None:
     if len(table):
         last = table.iloc[-1]
         print(
-            f"{len(table)} generations; last generation: {int(last['completed'])} agents "
+            f"{_count(len(table), 'generation')}; last generation: {int(last['completed'])} agents "
             f"completed the survival task, batteries {last['batteries_mean']:.1f}, "
             f"matings {last['matings_mean']:.2f}"
         )
@@ -762,8 +768,21 @@ def build_parser(command: str | None = None) -> CliParser:
         "generation G (default: the newest checkpoint; evolve with --keep-checkpoints 0 to "
         "keep every generation)",
     )
-    render.add_argument("--fps", type=_int_arg("--fps"), default=10)
-    render.add_argument("--steps-per-frame", type=_int_arg("--steps-per-frame"), default=1)
+    render.add_argument(
+        "--fps",
+        type=_int_arg("--fps"),
+        default=10,
+        help="frames per second of the MP4, 1-120 (default 10). A frame is drawn every "
+        "--steps-per-frame control steps of 0.2 s, so with 1 step per frame 5 fps plays in "
+        "real time and 10 fps at twice real time",
+    )
+    render.add_argument(
+        "--steps-per-frame",
+        type=_int_arg("--steps-per-frame"),
+        default=1,
+        help="control steps simulated between two frames, 1-1000 (default 1); raise it to "
+        "show more of a run in a shorter video",
+    )
     render.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     render.set_defaults(func=_cmd_render)
 

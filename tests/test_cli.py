@@ -95,6 +95,25 @@ def test_help_shows_every_default() -> None:
     assert "projected run time" in " ".join(parser.commands["sweep"].format_help().split())
 
 
+def test_render_help_describes_every_option() -> None:
+    """Every option of ``render`` has a help text; --fps says what plays in real time."""
+    from cyber_rodent.cli import build_parser
+
+    render = build_parser().commands["render"]
+    bare = [a.option_strings[0] for a in render._actions if a.option_strings and not a.help]
+    assert bare == []
+    text = " ".join(render.format_help().split())
+    assert "5 fps plays in real time" in text and "control steps simulated between" in text
+
+
+def test_counts_read_in_the_singular_for_one() -> None:
+    from cyber_rodent.cli import _count
+
+    assert _count(1, "generation") == "1 generation"
+    assert _count(0, "generation") == "0 generations"
+    assert _count(12, "generation") == "12 generations"
+
+
 def test_parser_errors_are_one_line_without_usage() -> None:
     result = run_cli("evolve", "--method", "xyz")
     assert result.returncode == 2
