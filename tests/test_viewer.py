@@ -13,6 +13,7 @@ with the screenshot. Without the ``Xvfb`` binary the window tests are skipped (C
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import select
@@ -329,6 +330,11 @@ class FakeHandle:
         self.texts: list[Any] = []
         self.syncs = 0
         self.running = True
+        self.cam = mujoco.MjvCamera()  # a free camera, as the viewer opens it
+        self.cam.lookat[:] = OVERVIEW.lookat
+        self.cam.distance, self.cam.azimuth = OVERVIEW.distance, OVERVIEW.azimuth
+        self.cam.elevation = OVERVIEW.elevation
+        self.viewport = mujoco.MjrRect(0, 0, SCREEN[0], SCREEN[1])
 
     def is_running(self) -> bool:
         return self.running
@@ -390,6 +396,135 @@ def test_loop_paces_steps_to_the_clock_and_obeys_the_keys() -> None:
     handle.running = False
     assert session.watch(seconds=None) is False
     source.close()
+
+
+class FakeClock:
+    """Wall time that passes only when the loop sleeps or the test says so."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.now += max(0.0, seconds)
+
+
+def run_with_fake_clock(
+    speed: float, seconds: float, stall_at: float | None = None, stall: float = 0.0
+) -> list[int]:
+    """Watch a forage task for ``seconds`` of fake wall time, each frame costing 4 ms, with one
+    ``stall`` (s) in the first frame after ``stall_at``. Returns the control steps taken in
+    each frame."""
+    source = CountingTask()
+    assert source.survival.config.control_dt == 0.2
+    mirror = Mirror(source.world)
+    handle = FakeHandle(mirror.model)
+    clock = FakeClock()
+    session = Session(
+        source, mirror, handle, Controls(speed), threads=[], clock=clock, sleep=clock.sleep
+    )
+    per_frame: list[int] = []
+    shown = [0]
+    stalled = [stall_at is None]
+    present = session.present
+
+    def timed_present(fraction: float) -> None:
+        present(fraction)
+        per_frame.append(source.steps - shown[0])
+        shown[0] = source.steps
+        clock.now += 0.004
+        if not stalled[0] and clock.now >= stall_at:
+            clock.now += stall
+            stalled[0] = True
+
+    session.present = timed_present  # type: ignore[method-assign]
+    assert session.watch(seconds=seconds) is True
+    source.close()
+    return per_frame
+
+
+def test_pacing_follows_the_clock_and_does_not_catch_up_after_a_stall() -> None:
+    # Steady: one control step per 0.2 s of wall time (the first at once), one a frame at most.
+    steps = run_with_fake_clock(speed=1.0, seconds=4.0)
+    assert sum(steps) in (20, 21) and max(steps) == 1
+    # A 3 s stall after 1 s: the 3 s are lost, not fast-forwarded (4 s of wall time hold only
+    # 1 s of simulation), and no frame takes more than one step.
+    steps = run_with_fake_clock(speed=1.0, seconds=4.0, stall_at=1.0, stall=3.0)
+    assert sum(steps) in (6, 7) and max(steps) == 1, steps
+    # Faster: 4x takes 4 steps per 0.2 s of wall time, still without a burst after a stall.
+    steps = run_with_fake_clock(speed=4.0, seconds=2.0)
+    assert 38 <= sum(steps) <= 41
+    steps = run_with_fake_clock(speed=4.0, seconds=2.0, stall_at=1.0, stall=5.0)
+    assert 19 <= sum(steps) <= 22 and max(steps) <= 2, steps
+
+
+def test_pacer_re_anchors_after_a_stall() -> None:
+    pacer = viewer.Pacer(dt=0.2)
+    assert pacer.due(0.0, speed=1.0) == 1  # the first step at once
+    assert pacer.taken(1) == 0.0
+    assert pacer.due(0.1, speed=1.0) == 0 and pacer.progress == pytest.approx(0.5)
+    # A 10 s gap counts as MAX_FRAME_GAP of wall time: at most what one slow frame is due.
+    assert pacer.due(10.0, speed=1.0) == int(0.5 + viewer.MAX_FRAME_GAP / 0.2)
+    # Steps not taken in time (the step budget ran out) are dropped, not owed.
+    pacer.progress = 0.0
+    assert pacer.due(viewer.MAX_FRAME_GAP, speed=100.0) == 50
+    assert pacer.taken(3) == 1.0 and pacer.due(0.0, speed=100.0) == 1
+    assert pacer.single_step() == 1.0
+
+
+def test_bar_sits_under_its_label_at_any_camera() -> None:
+    """The energy bar lies under the label's text, left-aligned, BAR_GAP_PX below its
+    baseline and horizontal on the screen, whatever the zoom or the camera's angle."""
+    source = CountingTask()
+    mirror = Mirror(source.world)
+    handle = FakeHandle(mirror.model)
+    session = Session(source, mirror, handle, Controls(1.0), threads=[])
+    robots = source.robots()
+    centres = mirror.data.xpos[source.world.chassis_body]
+    for distance, azimuth, elevation in [(3.6, 90, -60), (8.0, 30, -20), (1.5, 200, -89)]:
+        handle.cam.distance, handle.cam.azimuth = distance, azimuth
+        handle.cam.elevation = elevation
+        screen = session.screen()
+        viewer.decorate(handle.user_scn, centres, robots, 200.0, screen)
+        geoms = handle.user_scn.geoms
+        for i in range(len(robots)):
+            label, frame, bar = geoms[3 * i], geoms[3 * i + 1], geoms[3 * i + 2]
+            anchor = np.array(label.pos)
+            px = screen.pixel(anchor)
+            rel = (np.array(frame.pos) - anchor) / px
+            mat = np.array(frame.mat).reshape(3, 3)
+            half_x, half_y = frame.size[0] / px, frame.size[1] / px
+            # The bar's axes are the screen's right and up.
+            np.testing.assert_allclose(mat[:, 0], screen.right, atol=1e-6)
+            np.testing.assert_allclose(mat[:, 1], screen.up, atol=1e-6)
+            # Left end at the text's start (within the frame's pixel), top under the baseline.
+            assert rel @ screen.right - half_x == pytest.approx(-1.0, abs=0.01)
+            top = rel @ screen.up + half_y
+            assert top == pytest.approx(-viewer.BAR_GAP_PX + 1.0, abs=0.01)
+            # The energy fill lies within the frame, from its left end.
+            fill = (np.array(bar.pos) - anchor) / px
+            assert fill @ screen.right - bar.size[0] / px == pytest.approx(0.0, abs=0.01)
+            assert bar.size[0] / px <= viewer.BAR_LENGTH_PX / 2 + 1e-6
+    source.close()
+
+
+def test_labels_of_robots_close_on_the_screen_are_lifted_apart() -> None:
+    anchors = np.array([[0.0, 0.0], [12.0, 4.0], [-30.0, 9.0], [40.0, 2.0], [400.0, 1.0]])
+    texts = ["CR0 Recharge 172", "CR1 Mate 90", "CR2 Forage 5", "CR3 Search 200", "CR4 Dead 0"]
+    lifts = viewer.label_lifts(anchors, texts)
+    assert lifts[0] == 0.0 and lifts[4] == 0.0  # the lowest one, and one far to the side
+    assert (lifts >= 0).all() and lifts[1:4].min() > 0
+    below = viewer.BAR_GAP_PX + viewer.BAR_THICKNESS_PX + 1.0
+    boxes = [
+        (x, y + lift - below, x + max(viewer.LABEL_CHAR_PX * len(t), viewer.BAR_LENGTH_PX),
+         y + lift + viewer.LABEL_TOP_PX)
+        for (x, y), lift, t in zip(anchors, lifts, texts, strict=True)
+    ]  # fmt: skip
+    for a, b in itertools.combinations(boxes, 2):
+        apart = a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1]
+        assert apart, (a, b)
 
 
 def test_mirror_glides_between_steps_and_leaves_the_world_alone() -> None:

@@ -14,16 +14,20 @@ What it shows, chosen by exactly one of:
   A finished episode starts the next one.
 
 The simulation advances in whole control steps (``survival.control_dt`` of simulated time each,
-0.2 s by default), paced to the wall clock times ``--speed``. The window shows a mirror of the
-live world, its own copy of the model and data updated after every control step; between steps
-the mirror moves the bodies along the way from the previous step's poses to the new ones, so
-that robots glide instead of jumping five times a second. The mirror also keeps the viewer's
-panels and mouse from changing the simulation: a run continues exactly as ``resume`` would.
+0.2 s by default), paced to the wall clock times ``--speed`` (:class:`Pacer`; after a stall,
+when the machine or the window held the loop up, it carries on from there rather than
+fast-forwarding to make up the lost time). The window shows a mirror of the live world, its own
+copy of the model and data updated after every control step; between steps the mirror moves the
+bodies along the way from the previous step's poses to the new ones, so that robots glide
+instead of jumping five times a second. The mirror also keeps the viewer's panels and mouse from
+changing the simulation: a run continues exactly as ``resume`` would.
 
-Each robot carries a label (``CR1 Forage 123``: robot, active behaviour, energy) and an energy
-bar in its behaviour's colour (the colours of ``cyber-rodent render``). The top-left panel shows
-the source, the simulated time and the speed; the top-right one lists the robots (behaviour,
-energy and, in a run, the active agent and its generation); the bottom-left one the keys.
+Each robot carries a label (``CR1 Forage 123``: robot, active behaviour, energy) and, under its
+text, an energy bar in its behaviour's colour (the colours of ``cyber-rodent render``), laid out
+in window pixels so that neither covers the other at any zoom or camera angle, nor another
+robot's (:func:`decorate`). The top-left panel shows the source, the simulated time and the
+speed; the top-right one lists the robots (behaviour, energy and, in a run, the active agent and
+its generation); the bottom-left one the keys.
 
 Keys, besides the viewer's own (left drag turns, right drag pans, scroll zooms, Tab and
 Shift+Tab show the left and right panels, F1 help, Esc free camera):
@@ -49,7 +53,7 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
@@ -84,9 +88,14 @@ RECHARGING = -1
 #: Survival task rule: a robot below this share of ``max_energy`` is hungry.
 HUNGRY = 0.5
 FRAME_PERIOD = 1.0 / 60.0
-#: Wall time per frame that may go to catching up with control steps; beyond it the viewer
-#: runs slower than ``--speed`` rather than stall.
+#: Wall time per frame that may go to control steps; beyond it the viewer runs slower than
+#: ``--speed`` rather than stall.
 STEP_BUDGET = 0.75 * FRAME_PERIOD
+#: The most wall time one frame counts towards the simulation. A longer gap between frames is a
+#: stall (the process was held up, the window dragged, a slow step): the clock is re-anchored
+#: and the time lost is not caught up. Frames slower than this (under 10 per second) run the
+#: simulation slower than ``--speed``.
+MAX_FRAME_GAP = 0.1
 LAUNCH_TIMEOUT = 60.0
 #: Wall time given to the viewer's thread to draw the last state before a screenshot.
 SETTLE = 0.4
@@ -416,37 +425,144 @@ class Controls:
 
 
 # --- drawing --------------------------------------------------------------------------------------
+#: m above the chassis centre: the label's anchor, where its text starts (left end, baseline).
 LABEL_HEIGHT = 0.36
-BAR_HEIGHT = 0.28
-BAR_HALF_LENGTH = 0.1
+#: The energy bar, in window pixels: it lies under its label's text, left-aligned with it, at
+#: this gap below the text's baseline (room for descenders), and faces the camera. Sized in
+#: pixels like the text, it keeps clear of the label at any zoom and camera angle.
+BAR_GAP_PX = 6.0
+BAR_LENGTH_PX = 64.0
+BAR_THICKNESS_PX = 5.0
+#: Scene viewport height assumed when the window does not report one (it is closing).
+DEFAULT_VIEWPORT_HEIGHT = 600
+#: MuJoCo's label font at 100 % (the viewer's scale without display scaling): about this many
+#: pixels per character, and the text's top this far above its anchor. For keeping the labels
+#: of robots that stand close on the screen apart.
+LABEL_CHAR_PX = 8.5
+LABEL_TOP_PX = 14.0
+LABEL_SPACING_PX = 3.0
+
+
+class ScreenFrame(NamedTuple):
+    """The camera as the window draws it: world directions of the screen's right and up, the
+    viewing direction, and how many metres one pixel spans at a given depth."""
+
+    eye: np.ndarray
+    forward: np.ndarray
+    up: np.ndarray
+    right: np.ndarray
+    metres_per_px: float  # at depth 1 m (perspective) or anywhere (orthographic)
+    orthographic: bool
+
+    def pixel(self, point: np.ndarray) -> float:
+        """Metres per window pixel at ``point``."""
+        if self.orthographic:
+            return self.metres_per_px
+        return self.metres_per_px * max(float((point - self.eye) @ self.forward), 1e-6)
+
+    def to_screen(self, point: np.ndarray) -> tuple[float, float]:
+        """Window pixels of ``point`` from the view's centre (x right, y up)."""
+        rel, px = point - self.eye, self.pixel(point)
+        return float(rel @ self.right) / px, float(rel @ self.up) / px
+
+
+def label_lifts(anchors: np.ndarray, texts: Sequence[str]) -> np.ndarray:
+    """Pixels to raise each label (and its bar) so that no two robots' label-and-bar boxes
+    overlap on the screen.
+
+    Args:
+        anchors: (n, 2) the labels' anchors in window pixels (x right, y up).
+        texts: the labels.
+
+    Returns:
+        (n,) lifts, >= 0. Labels lowest on the screen stay; each higher one that would touch a
+        label already placed goes up just clear of it, straight above its robot.
+    """
+    anchors = np.asarray(anchors, dtype=np.float64).reshape(-1, 2)
+    below = BAR_GAP_PX + BAR_THICKNESS_PX + 1.0
+    boxes: list[tuple[float, float, float, float]] = []  # (x0, y0, x1, y1), y up
+    lifts = np.zeros(len(anchors))
+    for k in np.argsort(anchors[:, 1], kind="stable"):
+        x, y = anchors[k]
+        x1 = x + max(LABEL_CHAR_PX * len(texts[k]), BAR_LENGTH_PX)
+        lift = 0.0
+        moved = True
+        while moved:
+            moved = False
+            for bx0, by0, bx1, by1 in boxes:
+                y0, y1 = y + lift - below, y + lift + LABEL_TOP_PX
+                gap = LABEL_SPACING_PX
+                if x < bx1 + gap and bx0 < x1 + gap and y0 < by1 + gap and by0 < y1 + gap:
+                    lift = by1 + gap + below - y
+                    moved = True
+        lifts[k] = lift
+        boxes.append((x, y + lift - below, x1, y + lift + LABEL_TOP_PX))
+    return lifts
+
+
+def screen_frame(
+    model: Any, data: Any, camera: Any, viewport_height: int, scratch: Any
+) -> ScreenFrame:
+    """The :class:`ScreenFrame` of ``camera`` (an ``MjvCamera``) on ``model`` and ``data`` in
+    a viewport ``viewport_height`` pixels tall (``scratch``: an ``MjvScene`` to compute in)."""
+    import mujoco
+
+    mujoco.mjv_updateCamera(model, data, camera, scratch)
+    gl = scratch.camera[0]
+    forward = np.array(gl.forward, dtype=np.float64)
+    up = np.array(gl.up, dtype=np.float64)
+    span = float(gl.frustum_top - gl.frustum_bottom) / max(int(viewport_height), 1)
+    orthographic = bool(gl.orthographic)
+    return ScreenFrame(
+        eye=np.array(gl.pos, dtype=np.float64), forward=forward, up=up,
+        right=np.cross(forward, up),
+        metres_per_px=span if orthographic else span / max(float(gl.frustum_near), 1e-9),
+        orthographic=orthographic,
+    )  # fmt: skip
 
 
 def decorate(
-    scene: Any, centres: np.ndarray, robots: Sequence[RobotStatus], max_energy: float
+    scene: Any,
+    centres: np.ndarray,
+    robots: Sequence[RobotStatus],
+    max_energy: float,
+    screen: ScreenFrame,
 ) -> None:
-    """Fill the viewer's user scene: per robot a label and an energy bar above it."""
+    """Fill the viewer's user scene: per robot a label above it and its energy bar under the
+    label's text, laid out in window pixels on ``screen`` so that neither covers the other,
+    nor another robot's (:func:`label_lifts`)."""
     import mujoco
 
     scene.ngeom = 0
+    # Bar boxes: x along the screen's right, y along its up, z towards the camera.
+    facing = np.column_stack([screen.right, screen.up, -screen.forward]).ravel()
     identity = np.eye(3).ravel()
-    for centre, status in zip(centres, robots, strict=True):
+    texts = [f"{s.name} {s.behaviour} {s.energy:.0f}"[:99] for s in robots]
+    anchors = np.asarray(centres, dtype=np.float64).reshape(-1, 3) + [0.0, 0.0, LABEL_HEIGHT]
+    lifts = label_lifts(np.array([screen.to_screen(a) for a in anchors]).reshape(-1, 2), texts)
+    for anchor, lift, status, text in zip(anchors, lifts, robots, texts, strict=True):
         share = float(np.clip(status.energy / max_energy, 0.0, 1.0)) if max_energy > 0 else 0.0
         colour = np.array([*(c / 255 for c in status.colour), 1.0], dtype=np.float32)
+        anchor = anchor + screen.up * lift * screen.pixel(anchor)
+        px = screen.pixel(anchor)
+        half_length, half_thick = 0.5 * BAR_LENGTH_PX * px, 0.5 * BAR_THICKNESS_PX * px
+        bar = anchor + screen.right * half_length - screen.up * (BAR_GAP_PX * px + half_thick)
         shapes = (
-            (mujoco.mjtGeom.mjGEOM_LABEL, np.zeros(3), np.array([0.0, 0.0, LABEL_HEIGHT]),
+            (mujoco.mjtGeom.mjGEOM_LABEL, np.zeros(3), anchor, identity,
              np.ones(4, dtype=np.float32)),
-            (mujoco.mjtGeom.mjGEOM_BOX, np.array([BAR_HALF_LENGTH, 0.012, 0.004]),
-             np.array([0.0, 0.0, BAR_HEIGHT]), np.array([0.1, 0.1, 0.1, 0.85], dtype=np.float32)),
-            (mujoco.mjtGeom.mjGEOM_BOX, np.array([BAR_HALF_LENGTH * share, 0.016, 0.006]),
-             np.array([BAR_HALF_LENGTH * (share - 1.0), 0.0, BAR_HEIGHT]), colour),
+            # A dark frame one pixel wider than the bar all round, then the bar over it.
+            (mujoco.mjtGeom.mjGEOM_BOX, np.array([half_length + px, half_thick + px, px]),
+             bar, facing, np.array([0.1, 0.1, 0.1, 0.85], dtype=np.float32)),
+            (mujoco.mjtGeom.mjGEOM_BOX, np.array([half_length * share, half_thick, 2 * px]),
+             bar + screen.right * half_length * (share - 1.0), facing, colour),
         )  # fmt: skip
-        for kind, size, offset, rgba in shapes:
+        for kind, size, pos, mat, rgba in shapes:
             if scene.ngeom >= scene.maxgeom:
                 return
             geom = scene.geoms[scene.ngeom]
-            mujoco.mjv_initGeom(geom, kind, size, centre + offset, identity, rgba)
+            mujoco.mjv_initGeom(geom, kind, size, pos, mat, rgba)
             if kind == mujoco.mjtGeom.mjGEOM_LABEL:
-                geom.label = f"{status.name} {status.behaviour} {status.energy:.0f}"[:99]
+                geom.label = text
             scene.ngeom += 1
 
 
@@ -475,20 +591,65 @@ KEY_HELP = (
 
 
 # --- the loop -------------------------------------------------------------------------------------
+class Pacer:
+    """When control steps are due: the wall clock times the speed, without catching up stalls.
+
+    ``progress`` is how far the window is through the last control step (1: the newest state in
+    full). Each frame adds the wall time since the previous one, at most ``MAX_FRAME_GAP``,
+    times ``speed / dt``; a whole step is due each time it reaches 1.
+    """
+
+    def __init__(self, dt: float) -> None:
+        self.dt = dt
+        self.progress = 1.0
+
+    def due(self, elapsed: float, speed: float) -> int:
+        """Steps due after ``elapsed`` wall seconds at ``speed``."""
+        self.progress += min(max(elapsed, 0.0), MAX_FRAME_GAP) * speed / self.dt
+        return int(self.progress)
+
+    def taken(self, steps: int) -> float:
+        """``steps`` of those due were taken; what was not (too slow) is dropped. Returns the
+        fraction of the last step to show."""
+        self.progress = min(self.progress - steps, 1.0)
+        return self.progress
+
+    def single_step(self) -> float:
+        """A step taken by key: shown in full at once."""
+        self.progress = 1.0
+        return self.progress
+
+
 @dataclass
 class Session:
-    """A running viewer: the source, its mirror, the window and the keys."""
+    """A running viewer: the source, its mirror, the window and the keys (``clock`` and
+    ``sleep``: the wall clock the loop paces itself by)."""
 
     source: LiveSource
     mirror: Mirror
     handle: Any
     controls: Controls
     threads: list[threading.Thread]
+    clock: Callable[[], float] = time.monotonic
+    sleep: Callable[[float], None] = time.sleep
     _texts: tuple[tuple[str, str], tuple[str, str]] | None = None
+    _scratch: Any = None
 
     def advance(self) -> None:
         """One control step of the source, taken into the mirror."""
         self.mirror.follow(jumped=self.source.step())
+
+    def screen(self) -> ScreenFrame:
+        """The window's camera now (call with the handle's lock held)."""
+        import mujoco
+
+        if self._scratch is None:
+            self._scratch = mujoco.MjvScene(self.mirror.model, maxgeom=1)
+        viewport = self.handle.viewport
+        height = DEFAULT_VIEWPORT_HEIGHT if viewport is None else viewport.height
+        return screen_frame(
+            self.mirror.model, self.mirror.data, self.handle.cam, height, self._scratch
+        )
 
     def present(self, fraction: float) -> None:
         """Show the mirror ``fraction`` through the last step, with labels and the panel."""
@@ -499,8 +660,9 @@ class Session:
         world = self.source.world
         centres = self.mirror.data.xpos[world.chassis_body]
         handle = self.handle
+        max_energy = self.source.survival.config.max_energy
         with handle.lock():
-            decorate(handle.user_scn, centres, robots, self.source.survival.config.max_energy)
+            decorate(handle.user_scn, centres, robots, max_energy, self.screen())
         about, lines = panel_texts(self.source.rows(), robots, world.time, self.controls)
         if (about, lines) != self._texts:
             grid = mujoco.mjtGridPos
@@ -514,9 +676,9 @@ class Session:
     def watch(self, seconds: float | None) -> bool:
         """Step in real time times the speed until the window closes or ``seconds`` pass;
         True if the time ran out with the window still open."""
-        dt = self.source.survival.config.control_dt
-        progress = 1.0  # through the last control step (1: the newest state in full)
-        clock = time.monotonic
+        pacer = Pacer(self.source.survival.config.control_dt)
+        progress = pacer.progress
+        clock = self.clock
         start = last = clock()
         while self.handle.is_running():
             now = clock()
@@ -525,15 +687,15 @@ class Session:
             elapsed, last = now - last, now
             if self.controls.take_step():
                 self.advance()
-                progress = 1.0
+                progress = pacer.single_step()
             elif not self.controls.paused:
-                progress += elapsed * self.controls.speed / dt
-                while progress >= 1.0 and clock() < now + STEP_BUDGET:
+                due, taken = pacer.due(elapsed, self.controls.speed), 0
+                while taken < due and clock() < now + STEP_BUDGET:
                     self.advance()
-                    progress -= 1.0
-                progress = min(progress, 1.0)  # behind: drop the backlog, run slower
+                    taken += 1
+                progress = pacer.taken(taken)
             self.present(progress)
-            time.sleep(max(0.0, now + FRAME_PERIOD - clock()))
+            self.sleep(max(0.0, now + FRAME_PERIOD - clock()))
         return False
 
     def close(self) -> None:
