@@ -6,6 +6,7 @@ ray-casts. Each scene states what both must see.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterator
 
@@ -27,6 +28,7 @@ from cyber_rodent.vision.agreement import compare_scene, random_scene, summarise
 from cyber_rodent.vision.geometric import GeometricVision
 from cyber_rodent.vision.rendered import RenderedVision
 from cyber_rodent.vision.segmentation import OmniSegmenter
+from cyber_rodent.vision.snapshot import compose_omni_panels, place_strip_labels
 from cyber_rodent.vision.targets import target_geometry
 from cyber_rodent.world import World, WorldConfig
 
@@ -236,3 +238,79 @@ def test_snapshot_png_has_image_and_overlay(world, tmp_path) -> None:
     assert np.any(np.all(bgr == (40, 40, 255), axis=1))  # its face (BGR of red)
     with pytest.raises(ValueError, match="robot"):
         save_omni_png(world, 2, tmp_path / "bad.png")
+
+
+def test_snapshot_overlay_ends_with_its_content_and_labels_hang_below(world) -> None:
+    """The segmentation panel stops a little below its lowest class pixel; every segmented
+    pixel is shown there, none covered by a label or leader; the labels hang below it."""
+    _place(world, [(-0.3, 0.0, 0.0), (0.3, 0.0, math.pi)], [(0.9, 0.9), (0.9, -0.9)], True)
+    with RenderedVision(world) as vision:
+        frame = vision.observe()
+        assert vision.last_strips is not None and vision.last_masks is not None
+        strip, masks = vision.last_strips[0], vision.last_masks[:, 0]
+        image = compose_omni_panels(strip, masks, frame, 0, vision)
+    config = vision.config
+    assert len(frame.blobs[0]) >= 3  # robot 1's LED and face, a pack
+    # Header (20 rows), image panel, white gap (4 rows), overlay, label band.
+    gap = int(np.flatnonzero((image == 255).all(axis=(1, 2)))[0])
+    scale_y = (gap - 20) // config.height
+    scale_x = image.shape[1] // config.strip_width
+    assert (gap - 20) % config.height == 0 and image.shape[1] % config.strip_width == 0
+    below = image[gap + 4 :]
+    dark = (below == 0).all(axis=2).mean(axis=1) > 0.5  # the band: mostly black rows
+    band_top = int(np.flatnonzero(~dark)[-1]) + 1  # the dimmed floor ends the overlay
+    overlay, band = below[:band_top], below[band_top:]
+    lowest = int(np.flatnonzero(masks.any(axis=(0, 2)))[-1])
+    assert (lowest + 1) * scale_y <= overlay.shape[0] < config.height * scale_y
+    assert overlay.shape[0] <= (lowest + 1 + config.height // 24) * scale_y
+    for c, rgb in enumerate(((40, 255, 40), (255, 40, 40), (60, 120, 255))):
+        shown = int((overlay == rgb).all(axis=2).sum())
+        assert shown == int((masks[c] > 0).sum()) * scale_x * scale_y, c
+    # One label per blob in the band: its text in the class colour.
+    assert band.shape[0] >= 8 + 16
+    for c, rgb in enumerate(((40, 255, 40), (255, 40, 40), (60, 120, 255))):
+        if any(b.cls == c for b in frame.blobs[0]):
+            assert (band == rgb).all(axis=2).sum() >= 10, c
+
+
+def _crossings(xs, widths, places) -> int:
+    return sum(
+        1
+        for i, (row, _) in enumerate(places)
+        for j, (r, left) in enumerate(places)
+        if r < row and left - 1 <= xs[i] <= left + widths[j] + 1
+    )
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_strip_labels_inside_apart_and_uncrossed(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    width = 1024
+    n = int(rng.integers(1, 13))
+    if seed % 2:  # a cluster, e.g. robots gathered on a pack
+        centre = rng.integers(0, width)
+        xs = np.clip(centre + rng.normal(0, 60, n), 0, width - 1).astype(int).tolist()
+    else:
+        xs = rng.integers(0, width, n).tolist()
+    widths = rng.integers(90, 150, n).tolist()
+    places = place_strip_labels(xs, widths, width)
+    assert len(places) == n
+    for (row, left), w in zip(places, widths, strict=True):
+        assert row >= 0 and 1 <= left and left + w <= width - 1
+    for i, j in itertools.combinations(range(n), 2):
+        (ri, li), (rj, lj) = places[i], places[j]
+        if ri == rj:
+            assert li + widths[i] < lj or lj + widths[j] < li, (i, j)
+    assert _crossings(xs, widths, places) == 0
+    # Each label beside its own leader, or at least over it.
+    for x, w, (_, left) in zip(xs, widths, places, strict=True):
+        assert left == x + 3 or left + w == x - 3 or left <= x <= left + w
+
+
+def test_strip_labels_of_many_blobs_in_one_column_stay_apart() -> None:
+    xs, widths = [500] * 6 + [1020, 3], [120] * 8
+    places = place_strip_labels(xs, widths, 1024)
+    for i, j in itertools.combinations(range(len(xs)), 2):
+        (ri, li), (rj, lj) = places[i], places[j]
+        assert ri != rj or li + widths[i] < lj or lj + widths[j] < li
+    assert all(1 <= left and left + w <= 1023 for (_, left), w in zip(places, widths, strict=True))
