@@ -39,8 +39,11 @@ RGB = tuple[int, int, int]
 Box = Sequence[float] | np.ndarray
 #: Empty space (around the field, the sky in side views): a dark slate rather than black.
 BACKGROUND_RGB: RGB = (58, 64, 76)
-#: Heading arrows: white with a dark outline, readable on the grey floor and the white body.
-HEADING_RGB: RGB = (255, 255, 255)
+#: Heading arrows: near-black with a white edge, readable on the grey floor and on the white
+#: robot bodies they mostly lie on.
+HEADING_RGB: RGB = (16, 16, 20)
+HEADING_EDGE_RGB: RGB = (255, 255, 255)
+#: Dark outlines that keep light marks (leader lines, rings) apart from what lies under them.
 OUTLINE_RGB: RGB = (16, 16, 20)
 #: Label boxes: light text on a dark box, with a thin leader line when moved off the robot.
 LABEL_BOX_RGB: RGB = (22, 24, 30)
@@ -234,11 +237,12 @@ def draw_caption(image: np.ndarray, text: str, scale: float | None = None) -> No
 def draw_heading(
     image: np.ndarray, centre: np.ndarray, yaw: float, length: float, width: int = 2
 ) -> None:
-    """An arrow from a robot's centre along its heading (image up = world +y)."""
+    """An arrow from a robot's centre along its heading (image up = world +y): dark, on a white
+    edge (``width`` px wide, the edge 2 px more on each side)."""
     x, y = float(centre[0]), float(centre[1])
     tip = (round(x + length * math.cos(yaw)), round(y - length * math.sin(yaw)))
     start = (round(x), round(y))
-    cv2.arrowedLine(image, start, tip, OUTLINE_RGB, width + 3, cv2.LINE_AA, tipLength=0.35)
+    cv2.arrowedLine(image, start, tip, HEADING_EDGE_RGB, width + 4, cv2.LINE_AA, tipLength=0.35)
     cv2.arrowedLine(image, start, tip, HEADING_RGB, width, cv2.LINE_AA, tipLength=0.35)
 
 

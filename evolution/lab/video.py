@@ -4,14 +4,16 @@ A frame is tiled, with no empty area, from these panels (:func:`frame_layout`):
 
 - ``top`` (the default camera): the top-down field on the left; on the right, every robot's
   360° omni strip (what its camera sees, straight ahead in the middle) under a status line
-  (agent, generation, energy, behaviour, LED), then the legend.
+  (agent, generation, energy, behaviour, LED, and at its right end the energy bar of the
+  robot's label), then the legend.
 - ``chase:N``: robot N's chase view (from behind and above) on the left; on the right, the
   top-down field, robot N's status line and omni strip, then the legend.
 - ``omni:N``: robot N's status line and omni strip across the whole width; below, the top-down
   field, and on the right the other robots' strips (when they fit) and the legend.
 
-The top-down field shows each robot's heading arrow and a label (``CRi`` = robot index i, its
-behaviour in the behaviour's colour, an energy bar); labels never overlap
+The top-down field shows each robot's heading arrow (dark with a white edge, so that it reads on
+the floor and on the white bodies) and a label (``CRi`` = robot index i, its behaviour in the
+behaviour's colour, an energy bar); labels never overlap
 (:func:`cyber_rodent.render.place_labels`) and get a leader line when moved off their robot. A
 yellow ring marks a docked robot, a magenta line two robots at the moment they exchange genomes,
 and a white ring the robot that ``chase:N`` or ``omni:N`` follows. The legend says all this in
@@ -658,18 +660,22 @@ class RunVideo:
         if self.camera.kind == "omni" and i == self.camera.robot:
             parts.append("360 deg camera, straight ahead in the middle")
         pad = max(4, self.layout.status_h // 5)
-        text = _fit(parts, width - 2 * pad - self.layout.status_h, scale)
+        # The energy bar at the line's right end, drawn like the labels' bars and the legend's
+        # "energy" icon: a grey track, filled green (red below LOW_ENERGY); the same length on
+        # every line, so the robots' bars compare.
+        bar_w = 2 * self.layout.status_h
+        text = _fit(parts, width - 3 * pad - bar_w, scale)
         (_, th), _ = cv2.getTextSize(text, FONT, scale, text_thickness(scale))
         y = (self.layout.status_h + th) // 2
         fraction = min(1.0, max(0.0, energy / runner.survival.config.max_energy))
-        # A small energy gauge at the line's right end.
-        gauge = self.layout.status_h - 2 * pad
-        x0 = width - pad - gauge
-        cv2.rectangle(line, (x0, pad), (x0 + gauge, pad + gauge), (70, 70, 70), -1)
-        fill = round(gauge * fraction)
+        bar_h = max(3, round(th * 0.45))
+        x0, x1 = width - pad - bar_w, width - pad - 1
+        top = y - (th + bar_h) // 2
+        cv2.rectangle(line, (x0, top), (x1, top + bar_h - 1), (70, 70, 70), -1)
+        fill = round(bar_w * fraction)
         colour = ENERGY_RGB if fraction > LOW_ENERGY else LOW_ENERGY_RGB
         if fill:
-            cv2.rectangle(line, (x0, pad + gauge - fill), (x0 + gauge, pad + gauge), colour, -1)
+            cv2.rectangle(line, (x0, top), (x0 + fill - 1, top + bar_h - 1), colour, -1)
         draw_text(line, text, (pad, y), scale, rgb)
         return line
 
