@@ -422,13 +422,13 @@ def run_with_fake_clock(
     mirror = Mirror(source.world)
     handle = FakeHandle(mirror.model)
     clock = FakeClock()
-    session = Session(
+    loop = Session(
         source, mirror, handle, Controls(speed), threads=[], clock=clock, sleep=clock.sleep
     )
     per_frame: list[int] = []
     shown = [0]
     stalled = [stall_at is None]
-    present = session.present
+    present = loop.present
 
     def timed_present(fraction: float) -> None:
         present(fraction)
@@ -439,8 +439,8 @@ def run_with_fake_clock(
             clock.now += stall
             stalled[0] = True
 
-    session.present = timed_present  # type: ignore[method-assign]
-    assert session.watch(seconds=seconds) is True
+    loop.present = timed_present  # type: ignore[method-assign]
+    assert loop.watch(seconds=seconds) is True
     source.close()
     return per_frame
 
@@ -480,13 +480,13 @@ def test_bar_sits_under_its_label_at_any_camera() -> None:
     source = CountingTask()
     mirror = Mirror(source.world)
     handle = FakeHandle(mirror.model)
-    session = Session(source, mirror, handle, Controls(1.0), threads=[])
+    loop = Session(source, mirror, handle, Controls(1.0), threads=[])
     robots = source.robots()
     centres = mirror.data.xpos[source.world.chassis_body]
     for distance, azimuth, elevation in [(3.6, 90, -60), (8.0, 30, -20), (1.5, 200, -89)]:
         handle.cam.distance, handle.cam.azimuth = distance, azimuth
         handle.cam.elevation = elevation
-        screen = session.screen()
+        screen = loop.screen()
         viewer.decorate(handle.user_scn, centres, robots, 200.0, screen)
         geoms = handle.user_scn.geoms
         for i in range(len(robots)):
