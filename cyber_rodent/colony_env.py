@@ -40,11 +40,15 @@ Action (per agent; ``env.action_names``):
   ±``max_wheel_speed`` (default 1.0, inside the motor limit of 1.3), then LED, Mate and recharge
   in [−1, 1] (on above 0).
 
-Reward (per agent and step), by default: +1 (``dock_reward``) for each captured battery
-(``StepEvents.captured``, by the rules' ``capture_rule``) and +1 (``mate_reward``) for each IR
-exchange, for both partners; 0 otherwise, and no cost for dying (a dead robot earns nothing
-more). These are the two measures the paper scores the colony by, as in the dm-control
-``Survival`` task.
+The colony is the ``survival`` task of :mod:`cyber_rodent.tasks.spec` (:data:`TASK`) with every
+robot an agent: its field, switches and episode length are the defaults here, and its sparse
+reward's terms are the reward.
+
+Reward (per agent and step), by default: +1 (``dock_reward``, term ``capture``) for each
+captured battery (``StepEvents.captured``, by the rules' ``capture_rule``) and +1
+(``mate_reward``, term ``mating``) for each IR exchange, for both partners; 0 otherwise, and no
+cost for dying (a dead robot earns nothing more). These are the two measures the paper scores
+the colony by, as in the dm-control ``Survival`` task.
 
 ``infos[agent]`` holds ``captured`` (bool), ``mate_partner`` (the partner's agent name or None)
 and ``energy`` (float) of the step.

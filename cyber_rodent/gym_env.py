@@ -16,7 +16,10 @@ episodes (``behaviours.episodes``, where the shipped behaviours were trained), t
 :class:`~cyber_rodent.survival.SurvivalWorld` one control step (``control_dt``, 0.2 s) at a time
 on its lean path, with the geometric vision by default.
 
-Tasks (the settings of the behaviour episodes; Survival is the survival world with one robot):
+Tasks: each environment runs the spec of its task (:mod:`cyber_rodent.tasks.spec`, the one
+definition the dm-control tasks and the behaviour episodes read too; its ``gym`` variant, which
+for Survival is one robot alone), and nothing here depends on a task's name. A task added to
+the registry is an environment at once (``CyberRodentEnv(name)``). The built-in ones:
 
 * ``CyberRodent/Forage-v0``: 1 robot, 5 packs; the start is re-drawn until the robot sees a
   pack. Terminates with success when the robot docks onto a pack.
@@ -30,9 +33,10 @@ Tasks (the settings of the behaviour episodes; Survival is the survival world wi
   reflex after it). Terminates when the energy reaches 0 (death).
 
 Forage, Mate and Search use the behaviour episodes' rules (:func:`~cyber_rodent.tasks.rewards.
-episode_rules`: endless energy, 1e6, so no robot dies) and are truncated after
-``episode.max_steps`` (100) control steps; Survival after 400 (one agent lifetime of the paper's
-simulation, as the dm-control ``Survival`` task).
+episode_rules`: endless energy, 1e6, so no robot dies; a learner's death would end the episode,
+as the spec's ``death`` says) and are truncated after ``episode.max_steps`` (the spec's episode
+length, 100) control steps; Survival after 400 (one agent lifetime of the paper's simulation, as
+the dm-control ``Survival`` task).
 
 **The Mate partner.** The behaviours train Mate by self-play: both robots are learners acting on
 their own inputs with one shared action-value table (``behaviours.training``). Here robot 1 acts
@@ -81,19 +85,21 @@ Actions:
   recharging above 0), so the whole action lies in [−1, 1] as Gymnasium's and
   Stable-Baselines3's checkers recommend. ``env.unwrapped.action_names`` names the entries.
 
-Rewards (a float per step):
+Rewards (a float per step, robot 0's; the sum of the spec's named terms,
+:mod:`cyber_rodent.tasks.rewards`):
 
 * ``reward="sparse"`` (default): the task's success as a reward. Forage: 1 at the docking; Mate:
-  1 at the IR exchange; Search: 1 each time the robot's centre enters a 10 cm cell of the field
-  it has not visited in this episode (the area-covered measure of the behaviour evaluation,
-  :func:`~cyber_rodent.tasks.rewards.coverage_cells`); Survival: 1 per captured battery.
+  1 at the IR exchange (term ``success``); Search: 1 each time the robot's centre enters a 10 cm
+  cell of the field it has not visited in this episode (``new_cell``, the area-covered measure
+  of the behaviour evaluation, :func:`~cyber_rodent.tasks.rewards.coverage_cells`); Survival: 1
+  per captured battery (``capture``; and ``mating``, which one robot alone never earns).
 * ``reward="shaped"`` (Forage, Mate, Search): exactly the reward the behaviours were trained
-  with (:mod:`cyber_rodent.tasks.rewards`, the functions ``behaviours.episodes`` calls, with the
-  settings of ``episode``, an :class:`~cyber_rodent.tasks.rewards.EpisodeConfig`): goal reward,
-  step cost and distance shaping for Forage and Mate, forward progress minus a collision
-  penalty (3) for Search. With the default settings, geometric vision and the same placement, it
-  equals ``BehaviourEpisode``'s reward of robot 0 step by step (``tests/test_gym_env.py``).
-  Survival has no training reward and refuses it.
+  with (the terms ``behaviours.episodes`` sums, with the settings of ``episode``, an
+  :class:`~cyber_rodent.tasks.rewards.EpisodeConfig`): distance shaping, step cost and goal
+  reward for Forage and Mate (``shaping``, ``step_cost``, ``goal``), forward progress minus a
+  collision penalty (3) for Search (``progress``, ``collision``). With the default settings,
+  geometric vision and the same placement, it equals ``BehaviourEpisode``'s reward of robot 0
+  step by step (``tests/test_gym_env.py``). Survival has no training reward and refuses it.
 
 Pixels: ``pixels=True`` makes the observation a ``Dict`` with ``"state"`` (the vector above) and
 ``"pixels"``, robot 0's omni strip as the camera renders it (``Box(0, 255, (height,
@@ -104,8 +110,10 @@ still comes from ``vision`` (geometric by default), so pixels never change the d
 reward.
 
 ``info`` holds ``steps`` (control steps so far) and, after a step, ``collided`` (robot 0's body
-touches a wall, a pack or a robot), and ``is_success`` (Forage, Mate), ``coverage_cells``
-(Search: cells visited) or ``captures`` (Survival: batteries captured so far).
+touches a wall, a pack or a robot), the task's measure (the spec's ``measure``): ``is_success``
+(Forage, Mate), ``coverage_cells`` (Search: cells visited) or ``captures`` (Survival: batteries
+captured so far), and ``reward_terms``, each term of the step's reward by name (they sum to the
+reward, in this order).
 
 Rendering: ``render_mode="rgb_array"`` returns the top-down view of the field
 (:class:`cyber_rodent.render.FieldRenderer`, off-screen MuJoCo).
@@ -389,8 +397,9 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.task = spec.name
         self.action_kind = check_choice("action", action, ACTION_KINDS)
         self.reward_kind = check_choice("reward", reward, REWARD_KINDS)
+        registered = [task_spec(name) for name in task_names()]
         if not spec.rewards(reward):
-            offering = [task_spec(name).title for name in task_names() if task_spec(name).shaped]
+            offering = [other.title for other in registered if other.shaped]
             raise ValueError(
                 f"reward='shaped' is the behaviours' training reward of "
                 f"{_listed(offering)}; {spec.title} has none (use reward='sparse')"
@@ -407,13 +416,13 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         if episode is not None and not isinstance(episode, EpisodeConfig):
             raise ValueError(f"episode must be an EpisodeConfig, got {type(episode).__name__}")
         n_robots, n_packs = spec.field.robots, spec.field.packs
-        #: Robots that act: robot 0, and robot 1 (the partner) in a task of two learners.
+        # Robots that act: robot 0, and robot 1 (the partner) in a task of two learners.
         self.n_learners = spec.n_learners(n_robots)
         if partner_policy is not None and (self.n_learners < 2 or not callable(partner_policy)):
             partnered = [
-                task_spec(name).title
-                for name in task_names()
-                if task_spec(name).gym.n_learners(task_spec(name).gym.field.robots) >= 2
+                other.title
+                for other in registered
+                if other.gym.n_learners(other.gym.field.robots) >= 2
             ]
             raise ValueError(
                 f"partner_policy must be a callable, and only {_listed(partnered)} "

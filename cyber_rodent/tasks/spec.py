@@ -39,10 +39,33 @@ with endless energy in their episodes and Gymnasium environments (``endless_ener
 no behaviour's task). The Gymnasium ``Survival`` is one robot alone (``solo``), with its LED and
 Mate signal off: only its recharge decision is its own.
 
+Why each built-in task is as it is:
+
+* **Forage** and **Mate** are available to the evolved controller only with their target in view
+  (the paper's §3.4), so their episodes start in view of it. Forage's target is the nearest
+  pack; Mate's the other robot's green LED, else its red face. Discounting makes an earlier
+  goal worth more.
+* **Mate**'s partner is no script: both robots run Mate and are learners (the behaviours train
+  it by self-play with one shared table). The dm-control task takes one action per robot, so
+  it stays a plain ``dm_env`` environment with both robots' experience available; the
+  Gymnasium environment moves robot 1 with its ``partner_policy``. Their LEDs start on (the LED
+  is on when Mate wins over Forage) and both always signal Mate.
+* **Search** is the always-available exploration behaviour: obstacle avoidance from the
+  proximity sensors, among walls, packs and robots that stand still (parked), so that the
+  learner meets static obstacles of every kind. Driving straight at ``reference_speed`` earns 1
+  per step, spinning 0, pushing against a wall at most ``−collision_penalty``. The behaviours
+  train with a penalty of 3 (with 1 the learned policy touched obstacles about 3× as often);
+  the dm-control task keeps its historical default of 1 (``control_scales``).
+* **Survival** is the paper's simulation: every robot keeps its energy above 0 by docking and
+  reproduces by IR exchanges; it is rewarded for the two measures the paper scores (captured
+  batteries, matings). Dying costs no reward: a dead robot earns nothing more, and stands
+  still with its LED dark (agent replacement is evolution's job).
+
 Adding a task is one :func:`register` call with its spec; every consumer then offers it by name
 (``tasks.load(name)``, ``CyberRodentEnv(name)``). Example::
 
-    from cyber_rodent.tasks import spec, rewards
+    from cyber_rodent.tasks import rewards
+    from cyber_rodent.tasks.spec import Field, TaskSpec, register
 
     register(TaskSpec(
         name="wander", summary="two robots move about", field=Field(robots=2, packs=3),
