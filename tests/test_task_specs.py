@@ -85,6 +85,7 @@ def test_gymnasium_survival_is_one_robot_alone() -> None:
 
 
 def test_hardware_field_replaces_packs_and_parked_robots() -> None:
+    assert (FORAGE.parked, MATE.parked, SEARCH.parked, SURVIVAL.parked) == (0, 0, 3, 0)
     assert FORAGE.hardware_field(3, 6) == Field(robots=1, packs=6)
     assert MATE.hardware_field(3, 6) == Field(robots=2, packs=0)
     assert SEARCH.hardware_field(3, 6) == Field(robots=3, packs=6)

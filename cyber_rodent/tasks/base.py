@@ -122,10 +122,10 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         vision: vision provider, ``"geometric"`` (default) or ``"rendered"``.
         camera: the camera config shared by both providers.
         timestep: physics timestep, s (default: ``WorldConfig``'s).
-        start_in_view: (tasks with a start condition) re-draw the initial placement until the
-            condition holds (default True).
-        **scales: the reward's scales (:meth:`TaskSpec.reward_options`), e.g.
-            ``collision_penalty`` for Search, ``dock_reward`` for Survival.
+        **options: ``start_in_view`` (tasks with a start condition: re-draw the initial
+            placement until the condition holds; default True) and the reward's scales
+            (:meth:`TaskSpec.reward_options`), e.g. ``collision_penalty`` for Search,
+            ``dock_reward`` for Survival.
 
     Raises:
         ValueError: for an unknown or invalid option (the message names it and its allowed
@@ -206,9 +206,7 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         self._mate = fixed["mate"]
         self._recharge = fixed["recharge"]
         self._start_led = fixed["led"]
-        self.rewards = TaskRewards(
-            spec.rewards(kind), self.scales, self.survival, k, spec.target
-        )
+        self.rewards = TaskRewards(spec.rewards(kind), self.scales, self.survival, k, spec.target)
         self._reward = np.zeros(k)
         self.success = False
         self.last_events: StepEvents = self.survival.events

@@ -208,6 +208,11 @@ class TaskSpec:
         return self.name.title()
 
     @property
+    def parked(self) -> int:
+        """Robots of the field that do not act: wheels stopped, LEDs off (Search's 3)."""
+        return self.field.robots - self.n_learners(self.field.robots)
+
+    @property
     def switches(self) -> tuple[str, ...]:
         """The switches the learners' actions set (:data:`SWITCHES` order)."""
         return tuple(name for name in SWITCHES if getattr(self, name) is None)
@@ -241,9 +246,8 @@ class TaskSpec:
         """The field on hardware of ``n_robots`` and ``n_packs``: the hardware's packs if the
         task has any, its robots if the task has parked ones (the learners stay)."""
         field = self.field
-        parked = self.learners is not None and field.robots > self.learners
         return Field(
-            robots=n_robots if parked else field.robots,
+            robots=n_robots if self.parked else field.robots,
             packs=n_packs if field.packs > 0 else 0,
         )
 
