@@ -51,12 +51,16 @@ class BehaviourSpec:
         index: its behaviour index (the controller's output order).
         coder: the tile coder of its Q table.
         input_names: meaning of its two input dimensions.
+        episodes: training episodes of a full run (what the shipped values were trained with);
+            the episodes themselves are the task of the same name
+            (:func:`cyber_rodent.tasks.spec.task_spec`).
     """
 
     name: str
     index: int
     coder: TileCoderConfig
     input_names: tuple[str, str]
+    episodes: int
 
 
 #: Mate's and Forage's coder, each with its own hash seed.
@@ -70,18 +74,21 @@ SPECS: tuple[BehaviourSpec, ...] = (
         MATE,
         dataclasses.replace(_TARGET_CODER, seed=MATE + 1),
         ("bearing of the nearest LED (else face)", "distance of the nearest LED (else face)"),
+        2000,
     ),
     BehaviourSpec(
         "forage",
         FORAGE,
         dataclasses.replace(_TARGET_CODER, seed=FORAGE + 1),
         ("bearing of the nearest pack", "distance of the nearest pack"),
+        2000,
     ),
     BehaviourSpec(
         "search",
         SEARCH,
         TileCoderConfig(resolution=(10, 10), n_tilings=8, table_size=8192, seed=SEARCH + 1),
         ("largest proximity", "second largest proximity"),
+        1500,
     ),
 )
 assert tuple(s.name for s in SPECS) == BEHAVIOUR_NAMES

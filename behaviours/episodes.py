@@ -9,23 +9,30 @@ dm-control tasks of :mod:`cyber_rodent.tasks` wrap the same objects with the sam
 conditions; we drive the world directly because training needs hundreds of thousands of steps and
 the episode loop is then the only overhead.
 
-Episode settings (the same as the dm-control tasks ``forage``, ``mate`` and ``search``):
+Episode settings: the task of the behaviour's name, as its spec declares it
+(:mod:`cyber_rodent.tasks.spec`, which the dm-control tasks and the Gymnasium environments read
+too): its field, learners, start condition, success, the robots' switches, whether a docking is
+released at once, the episode length (``EpisodeConfig.max_steps``, the spec's by default) and
+the shaped reward's terms:
 
 * **Forage**: 1 robot, 5 packs; the start placement is re-drawn until the robot sees a pack. It
   ends with success when the robot docks (a capture, as the survival world defines it).
 * **Mate**: 2 robots, no packs, both LEDs on, both running Mate (both signal mating); the start
   is re-drawn until each sees the other's LED or face. It ends with success at the first IR
-  exchange (by default ports facing within ±15° at ≤ 0.35 m for one step; ``SurvivalConfig``'s
+  exchange (by default ports facing within ±15° at ≤ 0.35 m for 2 steps; ``SurvivalConfig``'s
   ``mate_angle_deg``, ``mate_distance`` and ``mate_consecutive_steps``).
 * **Search**: 4 robots (3 parked: wheels stopped, LEDs off), 5 packs; any start. It never ends
   early. A robot that docks by accident is released at once (recharging is not Search's job).
+
+An episode ends at the goal or after ``max_steps``; with endless energy no robot dies.
 
 **Hardware-like episodes** (sim-to-real, :mod:`cyber_rodent.profiles`): with a
 :class:`~cyber_rodent.profiles.HardwareProfile` every episode adds IR range noise and dropouts,
 camera noise and missed detections, and per-robot actuator differences; with the field part on,
 Forage and Search use the hardware's 6 packs and Search its 3 robots (Mate keeps 2 robots, no
-packs). The hardware has one weak robot among ``field.n_robots``: each episode draws which of
-them the learner is, so about one episode in three runs on the weak robot. With
+packs: :meth:`~cyber_rodent.tasks.spec.TaskSpec.hardware_field`). The hardware has one weak
+robot among ``field.n_robots``: each episode draws which of them the learner is, so about one
+episode in three runs on the weak robot. With
 ``randomise=True`` each episode also draws the magnitudes from the profile's ranges
 (:func:`cyber_rodent.profiles.randomised`): domain randomisation for training. The profile's
 draws come from a child of the episode's generator (``rng.spawn``), so the placements are those
@@ -44,9 +51,9 @@ Every episode draws its placement from its own generator, derived from ``(seed, 
 two policies evaluated with one seed see the same starts (a paired comparison), and a resumed
 training run continues exactly where it stopped.
 
-Rewards (per robot, per control step; ``γ`` is the learner's discount; defined, with
-:class:`EpisodeConfig` and :func:`episode_rules`, in :mod:`cyber_rodent.tasks.rewards`, which the
-Gymnasium environments share):
+Rewards (per robot, per control step; ``γ`` is the learner's discount): the task's shaped reward,
+its terms defined, with :class:`EpisodeConfig` and :func:`episode_rules`, in
+:mod:`cyber_rodent.tasks.rewards`, which the Gymnasium environments share:
 
 * **Forage**: ``goal_reward`` (1) at the step the robot docks (terminal), minus ``step_cost``
   (0.02) on every step, plus the potential-based shaping term ``γ Φ(s') − Φ(s)`` with
@@ -72,19 +79,11 @@ Gymnasium environments share):
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from behaviours.inputs import (
-    FORAGE,
-    MATE,
-    SEARCH,
-    behaviour_index,
-    behaviour_inputs,
-    search_inputs,
-)
+from behaviours.inputs import behaviour_index, behaviour_inputs, search_inputs
 from cyber_rodent.commands import COMMAND_SPEEDS, N_COMMANDS
 from cyber_rodent.profiles import (
     HardwareProfile,
@@ -97,14 +96,16 @@ from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
 from cyber_rodent.tasks.rewards import (
     COVERAGE_CELL,
     EpisodeConfig,
-    approach_reward,
+    RewardScales,
+    TaskRewards,
     coverage_cells,
     episode_rules,
     search_reward,
     shaping_reward,
+    total_reward,
 )
-from cyber_rodent.vision import CameraConfig, make_provider
-from cyber_rodent.vision.types import BATTERY, FACE, LED
+from cyber_rodent.tasks.spec import task_spec
+from cyber_rodent.vision import CameraConfig, VisionFrame, make_provider
 from cyber_rodent.world import World, WorldConfig
 
 
@@ -135,7 +136,7 @@ class BehaviourEpisode:
 
     Args:
         behaviour: ``"mate"``, ``"forage"`` or ``"search"``.
-        config: episode settings.
+        config: episode settings (default: ``EpisodeConfig`` with the task's episode length).
         timestep: physics timestep, s (default ``WorldConfig``'s).
         profile: optional hardware-like profile (see the module docstring).
         randomise: draw the profile's magnitudes anew each episode (needs ``profile``).
@@ -143,6 +144,7 @@ class BehaviourEpisode:
             by endless energy (:func:`episode_rules`).
 
     Attributes:
+        task: the task's spec (:class:`~cyber_rodent.tasks.spec.TaskSpec`).
         n_learners: robots acting (2 for Mate, else 1).
         steps: control steps of the current episode so far.
     """
@@ -158,18 +160,18 @@ class BehaviourEpisode:
     ) -> None:
         self.behaviour = behaviour_index(behaviour)
         self.name = behaviour
-        self.config = config or EpisodeConfig()
+        self.task = task = task_spec(behaviour)
+        self.config = config or EpisodeConfig(max_steps=task.episode_steps)
         if profile is not None and not isinstance(profile, HardwareProfile):
             raise ValueError(f"profile must be a HardwareProfile or None, got {profile!r}")
         if not isinstance(randomise, bool) or (randomise and profile is None):
             raise ValueError(f"randomise must be True (with a profile) or False, got {randomise!r}")
         self.profile, self.randomise = profile, randomise
         survival_cfg = episode_rules(survival)
-        robots, packs = {MATE: (2, 0), FORAGE: (1, 5), SEARCH: (4, 5)}[self.behaviour]
-        if profile is not None and profile.field.enabled and self.behaviour != MATE:
-            packs = profile.field.n_packs
-            if self.behaviour == SEARCH:
-                robots = profile.field.n_robots
+        field = task.field
+        if profile is not None and profile.field.enabled:
+            field = task.hardware_field(profile.field.n_robots, profile.field.n_packs)
+        robots, packs = field.robots, field.packs
         world_cfg = WorldConfig(n_robots=robots, n_packs=packs)
         if timestep is not None:
             world_cfg = WorldConfig(n_robots=robots, n_packs=packs, timestep=timestep)
@@ -179,11 +181,13 @@ class BehaviourEpisode:
         camera = CameraConfig()
         if profile is not None:
             camera = apply_vision(camera, profile.vision)
+        # A task that looks at nothing (Search: proximity only) runs without vision.
         self.vision = (
             make_provider("geometric", self.world, camera, np.random.default_rng(0))
-            if self.behaviour != SEARCH
+            if task.sees
             else None
         )
+        self._frame: VisionFrame | None = None
         self._range_noise: RangeSensorNoise | None = None
         self.episode_profile: HardwareProfile | None = None
         if profile is not None:
@@ -191,20 +195,21 @@ class BehaviourEpisode:
             self._drive_as_built = (
                 m.actuator_gainprm.copy(), m.actuator_dynprm.copy(), m.geom_friction.copy()
             )  # fmt: skip
-        self.n_learners = 2 if self.behaviour == MATE else 1
+        self.n_learners = task.n_learners(robots)
         self.dt = survival_cfg.control_dt
-        n = robots
-        self._wheels = np.zeros((n, 2))
-        self._led = np.zeros(n, dtype=bool)
-        self._mate = np.zeros(n, dtype=bool)
-        self._recharge = np.zeros(n, dtype=bool)
-        if self.behaviour == MATE:
-            self._led[:] = True
-            self._mate[:] = True
-        if self.behaviour == FORAGE:
-            self._recharge[:] = True  # a capture ends the episode anyway
-        self._collided = np.zeros(n, dtype=bool)
-        self._distance = np.zeros(self.n_learners)
+        switches = task.switch_values(robots)
+        self._wheels = np.zeros((robots, 2))
+        self._led = switches["led"]
+        self._mate = switches["mate"]
+        self._recharge = switches["recharge"]
+        self._collided = np.zeros(robots, dtype=bool)
+        self.rewards = TaskRewards(
+            task.shaped,
+            RewardScales.from_episode(self.config),
+            self.survival,
+            self.n_learners,
+            task.target,
+        )
         self.steps = 0
         self.positions: list[tuple[float, float]] = []
 
@@ -229,39 +234,23 @@ class BehaviourEpisode:
                 f"{self.config.max_start_draws} draws"
             )
         self.steps = 0
-        self._distance[:] = states[:, 1] if self.behaviour != SEARCH else 0.0
+        self.rewards.reset(self._frame)
         return states
 
     def step(self, commands: np.ndarray) -> StepResult:
         """Drive the learners with wheel commands (k,) for one control step."""
         k = self.n_learners
         self._wheels[:k] = COMMAND_SPEEDS[np.asarray(commands, dtype=np.int64)]
-        before = self.world.poses()[0] if self.behaviour == SEARCH else None
+        self.rewards.begin()
         events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
         self.steps += 1
         states = self._observe()
         self.survival.collisions(out=self._collided)
-        cfg = self.config
-        rewards = np.zeros(k)
-        terminal = False
-        if self.behaviour == FORAGE:
-            terminal = bool(events.docked[0])
-        elif self.behaviour == MATE:
-            terminal = bool(events.mate_partner[0] == 1)
-        if before is not None:  # Search
-            if self.survival.docked[0]:
-                self.survival.end_recharge(0, reflex=False)
-            x, y, _ = self.world.poses()[0]
-            progress = (x - before[0]) * math.cos(before[2]) + (y - before[1]) * math.sin(before[2])
-            rewards[0] = search_reward(
-                progress,
-                bool(self._collided[0]),
-                cfg.reference_speed * self.dt,
-                cfg.collision_penalty,
-            )
-        else:
-            rewards[:] = approach_reward(cfg, self._distance, states[:, 1], terminal)
-            self._distance[:] = states[:, 1]
+        terminal = self.task.reached(events)
+        if self.task.release_docking:  # recharging is not the behaviour's job
+            for robot in range(k):
+                self.survival.end_recharge(robot, reflex=False)
+        rewards = total_reward(self.rewards.end(events, self._frame, terminal, self._collided))
         return StepResult(states, rewards, terminal, self._collided[:k].copy())
 
     def position(self) -> np.ndarray:
@@ -311,12 +300,8 @@ class BehaviourEpisode:
         return inputs.of(self.behaviour)[:k].copy()
 
     def _start_ok(self) -> bool:
-        if self.behaviour == FORAGE:
-            return bool(self._frame.visible[0, BATTERY])
-        if self.behaviour == MATE:
-            seen = self._frame.visible[:2, LED] | self._frame.visible[:2, FACE]
-            return bool(seen.all())
-        return True
+        start = self.task.start
+        return start is None or (self._frame is not None and start.holds(self._frame))
 
 
 def random_commands(rng: np.random.Generator, k: int) -> np.ndarray:

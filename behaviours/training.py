@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from behaviours.action_values import ActionValues
-from behaviours.definitions import spec, values_metadata
+from behaviours.definitions import SPECS, spec, values_metadata
 from behaviours.episodes import BehaviourEpisode, EpisodeConfig, episode_rng, episode_rules
 from behaviours.inputs import BEHAVIOUR_NAMES
 from behaviours.sarsa import SarsaConfig, SarsaLambda
@@ -53,11 +53,12 @@ from cyber_rodent.atomic import atomic_output
 from cyber_rodent.commands import COMMAND_NAMES, N_COMMANDS
 from cyber_rodent.profiles import HardwareProfile
 from cyber_rodent.survival import SurvivalConfig
+from cyber_rodent.tasks.spec import task_spec
 from cyber_rodent.validation import integer, validate_fields
 
 #: Episodes a full training run of each behaviour uses by default (what the shipped values
-#: were trained with).
-DEFAULT_EPISODES = {"mate": 2000, "forage": 2000, "search": 1500}
+#: were trained with; :attr:`behaviours.definitions.BehaviourSpec.episodes`).
+DEFAULT_EPISODES = {s.name: s.episodes for s in SPECS}
 CHECKPOINT_VERSION = 2
 #: Columns of the learning curve.
 CURVE_COLUMNS = ("episode", "return", "steps", "success", "contacts")
@@ -137,6 +138,13 @@ def check_episodes(episodes: object) -> int:
     if not 1 <= episodes <= _MAX_EPISODES:
         raise ValueError(f"episodes: must be in [1, {_MAX_EPISODES}], got {episodes}")
     return int(episodes)
+
+
+def has_goal(behaviour: str) -> bool:
+    """The behaviour's task has a goal (Forage's docking, Mate's IR exchange): its training is
+    measured by the share of episodes that reach it; without one (Search), by the steps in
+    contact with an obstacle."""
+    return task_spec(behaviour).success is not None
 
 
 def _check_seed(seed: object) -> int:
@@ -227,10 +235,10 @@ def _write_curve(curve: np.ndarray, csv_path: Path, png_path: Path, name: str, w
     import matplotlib.pyplot as plt
 
     panels: tuple[tuple[int, str], ...]
-    if name == "search":  # no goal: the measures are return and contacts
-        panels = ((1, "return (robot 0)"), (4, "steps in contact per episode"))
-    else:
+    if has_goal(name):
         panels = ((3, "success rate"), (1, "return (robot 0)"), (2, "steps per episode"))
+    else:  # no goal: the measures are return and contacts
+        panels = ((1, "return (robot 0)"), (4, "steps in contact per episode"))
     fig, axes = plt.subplots(1, len(panels), figsize=(4 * len(panels), 3.2))
     w = max(1, min(window, len(curve)))
     kernel = np.ones(w) / w
@@ -399,10 +407,10 @@ def train(
                 bar.update(1)
                 if done % 10 == 0:
                     recent = curve[max(0, done - 100) : done]
-                    if behaviour == "search":
-                        bar.set_postfix(contacts=f"{recent[:, 4].mean():.1f}")
-                    else:
+                    if has_goal(behaviour):
                         bar.set_postfix(success=f"{recent[:, 3].mean():.2f}")
+                    else:
+                        bar.set_postfix(contacts=f"{recent[:, 4].mean():.1f}")
             if done % config.checkpoint_every == 0 and done < episodes:
                 save_checkpoint(done)
     finally:
@@ -443,9 +451,9 @@ def train(
 def _final_training_measures(behaviour: str, curve: np.ndarray) -> dict[str, float]:
     """Mean of the last 200 training episodes (ε-greedy), recorded in the values' metadata."""
     tail = curve[-200:]
-    if behaviour == "search":
-        return {"final_training_contacts_per_episode": round(float(tail[:, 4].mean()), 4)}
-    return {"final_training_success_rate": round(float(tail[:, 3].mean()), 4)}
+    if has_goal(behaviour):
+        return {"final_training_success_rate": round(float(tail[:, 3].mean()), 4)}
+    return {"final_training_contacts_per_episode": round(float(tail[:, 4].mean()), 4)}
 
 
 def train_all(

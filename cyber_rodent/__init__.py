@@ -10,8 +10,10 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 __version__ = "0.2.0"
 
-# Gymnasium ids (cyber_rodent/gym_env.py). Entry-point strings: registering imports neither the
-# environment module nor mujoco; gymnasium.make imports them.
+# Gymnasium ids (cyber_rodent/gym_env.py) of the built-in tasks of cyber_rodent/tasks/spec.py,
+# by their titles (tests/test_task_specs.py checks that they match). Entry-point strings:
+# registering imports neither the environment module, nor the registry, nor mujoco;
+# gymnasium.make imports them.
 from gymnasium.envs.registration import register as _register  # noqa: E402
 
 for _task in ("Forage", "Mate", "Search", "Survival"):

@@ -131,7 +131,7 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
 def _cmd_train_behaviours(args: argparse.Namespace) -> int:
     from behaviours.definitions import spec
     from behaviours.inputs import BEHAVIOUR_NAMES
-    from behaviours.training import check_episodes, train
+    from behaviours.training import check_episodes, has_goal, train
     from cyber_rodent.profiles import HardwareProfile, profile_by_name
 
     profile = profile_by_name(args.profile)
@@ -169,10 +169,10 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
             survival=survival,
         )
         recent = result.curve[-100:]
-        if name == "search":
-            measure = f"contacts per episode over the last 100: {recent[:, 4].mean():.2f}"
-        else:
+        if has_goal(name):
             measure = f"success over the last 100: {recent[:, 3].mean():.2f}"
+        else:
+            measure = f"contacts per episode over the last 100: {recent[:, 4].mean():.2f}"
         print(
             f"{name}: {len(result.curve)} episodes ({result.episodes_run} this run, "
             f"{result.wall_time:.1f} s), {measure}; "

@@ -40,11 +40,15 @@ Action (per agent; ``env.action_names``):
   ±``max_wheel_speed`` (default 1.0, inside the motor limit of 1.3), then LED, Mate and recharge
   in [−1, 1] (on above 0).
 
-Reward (per agent and step), by default: +1 (``dock_reward``) for each captured battery
-(``StepEvents.captured``, by the rules' ``capture_rule``) and +1 (``mate_reward``) for each IR
-exchange, for both partners; 0 otherwise, and no cost for dying (a dead robot earns nothing
-more). These are the two measures the paper scores the colony by, as in the dm-control
-``Survival`` task.
+The colony is the ``survival`` task of :mod:`cyber_rodent.tasks.spec` (:data:`TASK`) with every
+robot an agent: its field, switches and episode length are the defaults here, and its sparse
+reward's terms are the reward.
+
+Reward (per agent and step), by default: +1 (``dock_reward``, term ``capture``) for each
+captured battery (``StepEvents.captured``, by the rules' ``capture_rule``) and +1
+(``mate_reward``, term ``mating``) for each IR exchange, for both partners; 0 otherwise, and no
+cost for dying (a dead robot earns nothing more). These are the two measures the paper scores
+the colony by, as in the dm-control ``Survival`` task.
 
 ``infos[agent]`` holds ``captured`` (bool), ``mate_partner`` (the partner's agent name or None)
 and ``energy`` (float) of the step.
@@ -71,7 +75,6 @@ from cyber_rodent.gym_env import (
     DEFAULT_MAX_WHEEL_SPEED,
     OBSERVATION_NAMES,
     OBSERVATION_UNITS,
-    SURVIVAL_STEPS,
     action_names,
     action_space,
     check_max_wheel_speed,
@@ -81,12 +84,17 @@ from cyber_rodent.gym_env import (
 )
 from cyber_rodent.render import FieldRenderer, check_image_size
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
+from cyber_rodent.tasks.rewards import RewardScales, TaskRewards, total_reward
+from cyber_rodent.tasks.spec import SURVIVAL
 from cyber_rodent.validation import check_choice, check_integer, check_number
 from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig, VisionFrame, make_provider
 from cyber_rodent.world import World, WorldConfig
 
+#: The task of the colony: Survival, every robot an agent (its field, rewards, switches and
+#: episode length are the defaults here).
+TASK = SURVIVAL
 #: The switches of a colony agent's action, after the wheel command.
-SWITCHES = ("led", "mate", "recharge")
+SWITCHES = TASK.switches
 
 
 def agent_name(robot: int) -> str:
@@ -125,12 +133,12 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
 
     def __init__(
         self,
-        n_robots: int = 4,
-        n_packs: int = 5,
+        n_robots: int = TASK.field.robots,
+        n_packs: int = TASK.field.packs,
         *,
         action: str = "discrete",
         survival: SurvivalConfig | None = None,
-        max_cycles: int = SURVIVAL_STEPS,
+        max_cycles: int = TASK.episode_steps,
         dock_reward: float = 1.0,
         mate_reward: float = 1.0,
         vision: str = "geometric",
@@ -147,6 +155,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self.max_cycles = check_integer("max_cycles", max_cycles, 1, 10_000_000)
         self.dock_reward = check_number("dock_reward", dock_reward)
         self.mate_reward = check_number("mate_reward", mate_reward)
+        scales = RewardScales(dock_reward=self.dock_reward, mate_reward=self.mate_reward)
         check_choice("vision", vision, PROVIDER_NAMES)
         if camera is not None and not isinstance(camera, CameraConfig):
             raise ValueError(f"camera must be a CameraConfig, got {type(camera).__name__}")
@@ -192,6 +201,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self._mate = np.zeros(n, dtype=bool)
         self._recharge = np.zeros(n, dtype=bool)
         self._switches = np.zeros(len(SWITCHES), dtype=bool)
+        self.rewards = TaskRewards(TASK.sparse, scales, self.survival, n, TASK.target)
         self._rng: np.random.Generator | None = None
         self._renderer: FieldRenderer | None = None
         self.steps = 0
@@ -216,7 +226,9 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self.world.set_led(False)
         self.agents = list(self.possible_agents)
         self.steps = 0
-        states = robot_observations(self.survival, self.vision.observe(), self.max_range)
+        frame = self.vision.observe()
+        self.rewards.reset(frame)
+        states = robot_observations(self.survival, frame, self.max_range)
         observations = {agent: states[i].copy() for agent, i in self._index.items()}
         return observations, {agent: {} for agent in self.agents}
 
@@ -249,14 +261,18 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self._led[:] = False
         self._mate[:] = False
         self._recharge[:] = False
+        switches = {"led": self._led, "mate": self._mate, "recharge": self._recharge}
         for agent in self.agents:
             i = self._index[agent]
             space = self.action_spaces[agent]
             decode_action(actions[agent], space, self._wheels[i], self._switches)
-            self._led[i], self._mate[i], self._recharge[i] = self._switches
+            for name, on in zip(SWITCHES, self._switches, strict=True):
+                switches[name][i] = on
+        self.rewards.begin()
         events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
         self.steps += 1
         frame: VisionFrame = self.vision.observe()
+        reward = total_reward(self.rewards.end(events, frame, TASK.reached(events)))
         states = robot_observations(self.survival, frame, self.max_range)
         truncate = self.steps >= self.max_cycles
         sw = self.survival
@@ -270,9 +286,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
             captured = bool(events.captured[i])
             partner = int(events.mate_partner[i])
             observations[agent] = states[i].copy()
-            rewards[agent] = (self.dock_reward if captured else 0.0) + (
-                self.mate_reward if partner >= 0 else 0.0
-            )
+            rewards[agent] = float(reward[i])
             terminations[agent] = not bool(sw.alive[i])
             truncations[agent] = truncate and not terminations[agent]
             infos[agent] = {

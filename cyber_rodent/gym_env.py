@@ -16,7 +16,10 @@ episodes (``behaviours.episodes``, where the shipped behaviours were trained), t
 :class:`~cyber_rodent.survival.SurvivalWorld` one control step (``control_dt``, 0.2 s) at a time
 on its lean path, with the geometric vision by default.
 
-Tasks (the settings of the behaviour episodes; Survival is the survival world with one robot):
+Tasks: each environment runs the spec of its task (:mod:`cyber_rodent.tasks.spec`, the one
+definition the dm-control tasks and the behaviour episodes read too; its ``gym`` variant, which
+for Survival is one robot alone), and nothing here depends on a task's name. A task added to
+the registry is an environment at once (``CyberRodentEnv(name)``). The built-in ones:
 
 * ``CyberRodent/Forage-v0``: 1 robot, 5 packs; the start is re-drawn until the robot sees a
   pack. Terminates with success when the robot docks onto a pack.
@@ -30,9 +33,10 @@ Tasks (the settings of the behaviour episodes; Survival is the survival world wi
   reflex after it). Terminates when the energy reaches 0 (death).
 
 Forage, Mate and Search use the behaviour episodes' rules (:func:`~cyber_rodent.tasks.rewards.
-episode_rules`: endless energy, 1e6, so no robot dies) and are truncated after
-``episode.max_steps`` (100) control steps; Survival after 400 (one agent lifetime of the paper's
-simulation, as the dm-control ``Survival`` task).
+episode_rules`: endless energy, 1e6, so no robot dies; a learner's death would end the episode,
+as the spec's ``death`` says) and are truncated after ``episode.max_steps`` (the spec's episode
+length, 100) control steps; Survival after 400 (one agent lifetime of the paper's simulation, as
+the dm-control ``Survival`` task).
 
 **The Mate partner.** The behaviours train Mate by self-play: both robots are learners acting on
 their own inputs with one shared action-value table (``behaviours.training``). Here robot 1 acts
@@ -81,19 +85,21 @@ Actions:
   recharging above 0), so the whole action lies in [−1, 1] as Gymnasium's and
   Stable-Baselines3's checkers recommend. ``env.unwrapped.action_names`` names the entries.
 
-Rewards (a float per step):
+Rewards (a float per step, robot 0's; the sum of the spec's named terms,
+:mod:`cyber_rodent.tasks.rewards`):
 
 * ``reward="sparse"`` (default): the task's success as a reward. Forage: 1 at the docking; Mate:
-  1 at the IR exchange; Search: 1 each time the robot's centre enters a 10 cm cell of the field
-  it has not visited in this episode (the area-covered measure of the behaviour evaluation,
-  :func:`~cyber_rodent.tasks.rewards.coverage_cells`); Survival: 1 per captured battery.
+  1 at the IR exchange (term ``success``); Search: 1 each time the robot's centre enters a 10 cm
+  cell of the field it has not visited in this episode (``new_cell``, the area-covered measure
+  of the behaviour evaluation, :func:`~cyber_rodent.tasks.rewards.coverage_cells`); Survival: 1
+  per captured battery (``capture``; and ``mating``, which one robot alone never earns).
 * ``reward="shaped"`` (Forage, Mate, Search): exactly the reward the behaviours were trained
-  with (:mod:`cyber_rodent.tasks.rewards`, the functions ``behaviours.episodes`` calls, with the
-  settings of ``episode``, an :class:`~cyber_rodent.tasks.rewards.EpisodeConfig`): goal reward,
-  step cost and distance shaping for Forage and Mate, forward progress minus a collision
-  penalty (3) for Search. With the default settings, geometric vision and the same placement, it
-  equals ``BehaviourEpisode``'s reward of robot 0 step by step (``tests/test_gym_env.py``).
-  Survival has no training reward and refuses it.
+  with (the terms ``behaviours.episodes`` sums, with the settings of ``episode``, an
+  :class:`~cyber_rodent.tasks.rewards.EpisodeConfig`): distance shaping, step cost and goal
+  reward for Forage and Mate (``shaping``, ``step_cost``, ``goal``), forward progress minus a
+  collision penalty (3) for Search (``progress``, ``collision``). With the default settings,
+  geometric vision and the same placement, it equals ``BehaviourEpisode``'s reward of robot 0
+  step by step (``tests/test_gym_env.py``). Survival has no training reward and refuses it.
 
 Pixels: ``pixels=True`` makes the observation a ``Dict`` with ``"state"`` (the vector above) and
 ``"pixels"``, robot 0's omni strip as the camera renders it (``Box(0, 255, (height,
@@ -104,8 +110,10 @@ still comes from ``vision`` (geometric by default), so pixels never change the d
 reward.
 
 ``info`` holds ``steps`` (control steps so far) and, after a step, ``collided`` (robot 0's body
-touches a wall, a pack or a robot), and ``is_success`` (Forage, Mate), ``coverage_cells``
-(Search: cells visited) or ``captures`` (Survival: batteries captured so far).
+touches a wall, a pack or a robot), the task's measure (the spec's ``measure``): ``is_success``
+(Forage, Mate), ``coverage_cells`` (Search: cells visited) or ``captures`` (Survival: batteries
+captured so far), and ``reward_terms``, each term of the step's reward by name (they sum to the
+reward, in this order).
 
 Rendering: ``render_mode="rgb_array"`` returns the top-down view of the field
 (:class:`cyber_rodent.render.FieldRenderer`, off-screen MuJoCo).
@@ -133,11 +141,12 @@ from cyber_rodent.render import FieldRenderer, check_image_size
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
 from cyber_rodent.tasks.rewards import (
     EpisodeConfig,
-    approach_reward,
-    coverage_keys,
+    RewardScales,
+    TaskRewards,
     episode_rules,
-    search_reward,
+    total_reward,
 )
+from cyber_rodent.tasks.spec import SURVIVAL, TaskSpec, task_names, task_spec
 from cyber_rodent.validation import check_boolean, check_choice, check_number
 from cyber_rodent.vision import (
     BATTERY,
@@ -149,21 +158,19 @@ from cyber_rodent.vision import (
     VisionNoise,
     VisionProvider,
     make_provider,
-    normalise_distance,
 )
 from cyber_rodent.world import World, WorldConfig
 
 if TYPE_CHECKING:
     from cyber_rodent.vision.rendered import RenderedVision
 
-#: Task names, in the order of the registered ids.
+#: The built-in tasks' names, in the order of the registered ids (a task registered later in
+#: :mod:`cyber_rodent.tasks.spec` is offered too).
 TASK_NAMES = ("forage", "mate", "search", "survival")
 ACTION_KINDS = ("discrete", "continuous")
 REWARD_KINDS = ("sparse", "shaped")
-#: (robots, packs) of each task's field.
-TASK_FIELDS = {"forage": (1, 5), "mate": (2, 0), "search": (4, 5), "survival": (1, 5)}
 #: Control steps of a Survival episode (one agent lifetime of the paper's simulation).
-SURVIVAL_STEPS = 400
+SURVIVAL_STEPS = SURVIVAL.episode_steps
 #: Default bound of the continuous wheel speeds, m/s.
 DEFAULT_MAX_WHEEL_SPEED = 1.0
 #: A switch entry of a continuous action, in [-1, 1], is on above this.
@@ -319,11 +326,17 @@ def check_max_wheel_speed(value: object) -> float:
     return check_number("max_wheel_speed", value, 0.0, C.TOP_SPEED, low_open=True)
 
 
+def _listed(names: list[str]) -> str:
+    """``"A"``, ``"A and B"``, ``"A, B and C"``."""
+    return " and ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
+
+
 class CyberRodentEnv(gym.Env[Observation, Any]):
     """One Cyber Rodent task as a Gymnasium environment (see the module docstring).
 
     Args:
-        task: ``"forage"``, ``"mate"``, ``"search"`` or ``"survival"``.
+        task: ``"forage"``, ``"mate"``, ``"search"``, ``"survival"`` or another registered
+            task (:mod:`cyber_rodent.tasks.spec`; the spec's ``gym`` variant runs).
         action: ``"discrete"`` (the command table) or ``"continuous"`` (wheel speeds, m/s).
         reward: ``"sparse"`` (the task's success) or ``"shaped"`` (the behaviours' training
             reward; not for Survival).
@@ -334,16 +347,19 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         camera: the omni camera (vision and pixels); default :class:`CameraConfig`.
         survival: the survival rules (default: the paper's). Forage, Mate and Search replace
             the energy fields by endless energy, as the behaviour episodes do.
-        episode: length, start draws and shaped-reward settings; default ``EpisodeConfig()``,
-            with ``max_steps=400`` for Survival.
-        partner_policy: Mate only: robot 1's policy, from its observation to an action of this
-            environment's action space (None: it stands still).
+        episode: length, start draws and shaped-reward settings; default ``EpisodeConfig()``
+            with the task's episode length (``max_steps=400`` for Survival).
+        partner_policy: Mate only (a task with two learners): robot 1's policy, from its
+            observation to an action of this environment's action space (None: it stands
+            still).
         max_wheel_speed: bound of the continuous wheel speeds, m/s, in (0, 1.3].
         render_mode: None or ``"rgb_array"`` (top-down view).
         render_width, render_height: size of a rendered image, px.
         backend: ``"numba"`` or ``"numpy"`` kernels (the same trajectories).
 
     Attributes:
+        task_spec: the task's spec (:class:`~cyber_rodent.tasks.spec.TaskSpec`), its ``gym``
+            variant.
         observation_names: the names of the state vector's entries.
         observation_units: their units.
         action_names: the names of an action's entries.
@@ -375,13 +391,18 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         render_height: int = 480,
         backend: Backend = DEFAULT_BACKEND,
     ) -> None:
-        self.task = check_choice("task", task, TASK_NAMES)
+        check_choice("task", task, task_names())
+        spec = task_spec(task).gym
+        self.task_spec: TaskSpec = spec
+        self.task = spec.name
         self.action_kind = check_choice("action", action, ACTION_KINDS)
         self.reward_kind = check_choice("reward", reward, REWARD_KINDS)
-        if task == "survival" and reward == "shaped":
+        registered = [task_spec(name) for name in task_names()]
+        if not spec.rewards(reward):
+            offering = [other.title for other in registered if other.shaped]
             raise ValueError(
-                "reward='shaped' is the behaviours' training reward of Forage, Mate and Search; "
-                "Survival has none (use reward='sparse')"
+                f"reward='shaped' is the behaviours' training reward of "
+                f"{_listed(offering)}; {spec.title} has none (use reward='sparse')"
             )
         check_boolean("pixels", pixels)
         check_boolean("masks", masks)
@@ -394,8 +415,19 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
             raise ValueError(f"survival must be a SurvivalConfig, got {type(survival).__name__}")
         if episode is not None and not isinstance(episode, EpisodeConfig):
             raise ValueError(f"episode must be an EpisodeConfig, got {type(episode).__name__}")
-        if partner_policy is not None and (task != "mate" or not callable(partner_policy)):
-            raise ValueError("partner_policy must be a callable, and only Mate has a partner")
+        n_robots, n_packs = spec.field.robots, spec.field.packs
+        # Robots that act: robot 0, and robot 1 (the partner) in a task of two learners.
+        self.n_learners = spec.n_learners(n_robots)
+        if partner_policy is not None and (self.n_learners < 2 or not callable(partner_policy)):
+            partnered = [
+                other.title
+                for other in registered
+                if other.gym.n_learners(other.gym.field.robots) >= 2
+            ]
+            raise ValueError(
+                f"partner_policy must be a callable, and only {_listed(partnered)} "
+                f"{'has' if len(partnered) == 1 else 'have'} a partner"
+            )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
@@ -404,13 +436,11 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.max_wheel_speed = check_max_wheel_speed(max_wheel_speed)
         backend = check_backend(backend)
         if episode is None:
-            steps = SURVIVAL_STEPS if task == "survival" else EpisodeConfig().max_steps
-            episode = EpisodeConfig(max_steps=steps)
+            episode = EpisodeConfig(max_steps=spec.episode_steps)
         self.episode = episode
         self.partner_policy = partner_policy
-        rules = (survival or SurvivalConfig()) if task == "survival" else episode_rules(survival)
+        rules = episode_rules(survival) if spec.endless_energy else (survival or SurvivalConfig())
 
-        n_robots, n_packs = TASK_FIELDS[task]
         fixed = np.random.default_rng(0)  # construction only; every reset re-draws
         self.world = World(WorldConfig(n_robots=n_robots, n_packs=n_packs), fixed)
         self.survival = SurvivalWorld(self.world, rules, fixed, backend=backend)
@@ -427,18 +457,16 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.metadata = {**self.metadata, "render_fps": 1.0 / rules.control_dt}
         self.dt = rules.control_dt
 
-        # Commands of every robot, as the behaviour episodes set them.
+        # Commands of every robot: the spec's switches; the learners' actions set the wheels
+        # and the switches the spec leaves to them.
+        switch_values = spec.switch_values(n_robots)
         self._wheels = np.zeros((n_robots, 2))
-        self._led = np.zeros(n_robots, dtype=bool)
-        self._mate = np.zeros(n_robots, dtype=bool)
-        self._recharge = np.zeros(n_robots, dtype=bool)
-        if task == "mate":
-            self._led[:] = True
-            self._mate[:] = True
-        if task == "forage":
-            self._recharge[:] = True  # a docking ends the episode anyway
-        self._switches = np.zeros(1 if task == "survival" else 0, dtype=bool)
-        switches = ("recharge",) if task == "survival" else ()
+        self._led = switch_values["led"]
+        self._mate = switch_values["mate"]
+        self._recharge = switch_values["recharge"]
+        switches = spec.switches
+        self._switch_targets = tuple(switch_values[name] for name in switches)
+        self._switches = np.zeros(len(switches), dtype=bool)
         self.action_space = action_space(self.action_kind, switches, self.max_wheel_speed)
         self.action_names = action_names(self.action_kind, switches)
 
@@ -457,11 +485,19 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         else:
             self.observation_space = state_space
 
+        # Robot 0's reward, term by term.
+        scales = RewardScales.from_episode(episode) if reward == "shaped" else RewardScales()
+        self.rewards = TaskRewards(
+            spec.rewards(reward),
+            scales,
+            self.survival,
+            1,
+            spec.target,
+            track_cells=spec.measure == "coverage_cells",
+        )
         self._collided = np.zeros(n_robots, dtype=bool)
         self._frame = VisionFrame.empty(n_robots)
         self._states = np.zeros((n_robots, N_OBSERVATIONS), dtype=np.float32)
-        self._distance = 1.0
-        self._visited: set[int] = set()
         self._captures = 0
         self.steps = 0
         self._renderer: FieldRenderer | None = None
@@ -481,11 +517,12 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         rng = self.np_random
         if self.camera.noise.enabled:
             self.vision.rng = rng.spawn(1)[0]
+        start = self.task_spec.start
         for _ in range(self.episode.max_start_draws):
             self.survival.reset(rng)
             self.world.set_led(self._led)
             frame = self.vision.observe()
-            if self._start_ok(frame):
+            if start is None or start.holds(frame):
                 break
         else:
             raise RuntimeError(
@@ -497,8 +534,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.steps = 0
         self._captures = 0
         self._started = True
-        self._distance = self._target_distance()
-        self._visited = {self._cell()}
+        self.rewards.reset(frame)
         self._look()
         info = {"steps": 0}
         return self._observation(0), info
@@ -507,39 +543,33 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         """One control step with robot 0's ``action`` (and the partner's, in Mate)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        decode_action(action, self.action_space, self._wheels[0], self._switches)
-        if self.task == "survival":
-            self._recharge[0] = self._switches[0]
+        self._act(0, action)
         if self.partner_policy is not None:
-            partner = self.partner_policy(self._observation(1))
-            decode_action(partner, self.action_space, self._wheels[1], self._switches)
-        before = self.world.poses()[0]
+            self._act(1, self.partner_policy(self._observation(1)))
+        self.rewards.begin()
         events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
         self.steps += 1
         self._frame = self.vision.observe()
         self.survival.collisions(out=self._collided)
-        task = self.task
-        terminated = False
-        if task == "forage":
-            terminated = bool(events.docked[0])
-        elif task == "mate":
-            terminated = bool(events.mate_partner[0] == 1)
-        elif task == "survival":
-            terminated = not bool(self.survival.alive[0])
-        elif self.survival.docked[0]:  # Search: recharging is not its job
-            self.survival.end_recharge(0, reflex=False)
-        captured = bool(events.captured[0])
-        self._captures += captured
-        reward = self._reward(before, terminated, captured)
+        spec = self.task_spec
+        success = spec.reached(events)
+        terminated = success or spec.dead(self.survival.alive, self.n_learners)
+        if spec.release_docking:  # recharging is not the task's job
+            for robot in range(self.n_learners):
+                self.survival.end_recharge(robot, reflex=False)
+        self._captures += bool(events.captured[0])
+        terms = self.rewards.end(events, self._frame, success, self._collided)
+        reward = float(total_reward(terms)[0])
         truncated = not terminated and self.steps >= self.episode.max_steps
         self._look()
         info: dict[str, Any] = {"steps": self.steps, "collided": bool(self._collided[0])}
-        if task in ("forage", "mate"):
-            info["is_success"] = terminated
-        elif task == "search":
-            info["coverage_cells"] = len(self._visited)
+        if spec.measure == "is_success":
+            info["is_success"] = success
+        elif spec.measure == "coverage_cells":
+            info["coverage_cells"] = self.rewards.cells_visited[0]
         else:
             info["captures"] = self._captures
+        info["reward_terms"] = {name: float(value[0]) for name, value in terms.items()}
         return self._observation(0), reward, terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
@@ -572,50 +602,11 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         camera = dataclasses.replace(self.camera, noise=VisionNoise())  # images only
         return RenderedVision(self.world, camera, backend=backend), True
 
-    def _start_ok(self, frame: VisionFrame) -> bool:
-        if self.task == "forage":
-            return bool(frame.visible[0, BATTERY])
-        if self.task == "mate":
-            return bool((frame.visible[:2, LED] | frame.visible[:2, FACE]).all())
-        return True
-
-    def _target_distance(self) -> float:
-        """Robot 0's normalised distance of its target, the shaping's ``d`` (1 when unseen)."""
-        frame = self._frame
-        cls = BATTERY
-        if self.task == "mate":
-            cls = LED if frame.visible[0, LED] else FACE
-        d = normalise_distance(frame.distance[0, cls], frame.visible[0, cls])
-        return float(d)
-
-    def _cell(self) -> int:
-        return int(coverage_keys(self.world.poses()[:1, :2])[0])
-
-    def _reward(self, before: np.ndarray, terminated: bool, captured: bool) -> float:
-        task, cfg = self.task, self.episode
-        if task == "search":
-            x, y, _ = self.world.poses()[0]
-            cell = self._cell()
-            new_cell = cell not in self._visited
-            self._visited.add(cell)
-            if self.reward_kind == "sparse":
-                return 1.0 if new_cell else 0.0
-            progress = (x - before[0]) * math.cos(before[2]) + (y - before[1]) * math.sin(
-                before[2]
-            )
-            return search_reward(
-                progress,
-                bool(self._collided[0]),
-                cfg.reference_speed * self.dt,
-                cfg.collision_penalty,
-            )
-        if task == "survival":
-            return 1.0 if captured else 0.0
-        d_before, d_after = self._distance, self._target_distance()
-        self._distance = d_after
-        if self.reward_kind == "sparse":
-            return 1.0 if terminated else 0.0
-        return float(approach_reward(cfg, d_before, d_after, terminated))
+    def _act(self, robot: int, action: Any) -> None:
+        """Robot ``robot``'s action: its wheels, and the switches its action sets."""
+        decode_action(action, self.action_space, self._wheels[robot], self._switches)
+        for target, on in zip(self._switch_targets, self._switches, strict=True):
+            target[robot] = on
 
     def _look(self) -> None:
         """Every robot's state vector, and the strips if the observation has pixels."""

@@ -21,12 +21,15 @@ act with the learner in place of the fixed greedy behaviours, then :meth:`observ
 world's events (the rewards, terminal transitions, ended lives), and :meth:`on_births` when
 the scheduler replaced agents.
 
-Rewards (the training rewards of ``behaviours/``, without their hand-designed shaping, which
-the genome now evolves): Forage ``goal_reward`` at the docking (terminal) and ``-step_cost``
-every step; Mate likewise at the IR exchange; Search ``clip(progress / (reference_speed · dt),
--1, 1) - collision_penalty · collided``. Each transition adds the agent's shaping
-``γ Φ_b(s') - Φ_b(s)`` with ``Φ_b(s) = w_b0 s_0 + w_b1 s_1`` over the behaviour's two inputs
-(``Φ = 0`` after a terminal transition), which leaves the optimal policy unchanged.
+Rewards (the training rewards of ``behaviours/``, the shaped terms of each behaviour's task in
+:mod:`cyber_rodent.tasks.spec` without their hand-designed ``shaping``, which the genome now
+evolves): Forage ``goal_reward`` at the docking (terminal, the task's success) and
+``-step_cost`` every step; Mate likewise at the IR exchange; Search ``clip(progress /
+(reference_speed · dt), -1, 1) - collision_penalty · collided``, its progress the tasks' one
+definition (:func:`cyber_rodent.tasks.rewards.heading_progress`). Each transition adds the
+agent's shaping ``γ Φ_b(s') - Φ_b(s)`` with ``Φ_b(s) = w_b0 s_0 + w_b1 s_1`` over the
+behaviour's two inputs (``Φ = 0`` after a terminal transition), which leaves the optimal policy
+unchanged.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from behaviours.inputs import FORAGE, MATE, SEARCH
+from behaviours.inputs import BEHAVIOUR_NAMES, SEARCH
 from behaviours.kernels import (
     MAX_LEARNING_TILINGS,
     BehaviourInputs,
@@ -55,6 +58,8 @@ from behaviours.policies import raise_for_status
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
 from cyber_rodent.commands import COMMAND_NAMES
 from cyber_rodent.survival import StepEvents, SurvivalWorld
+from cyber_rodent.tasks.rewards import heading_progress, progress_reward
+from cyber_rodent.tasks.spec import task_spec
 from evolution.checkpoint import restore_array
 from evolution.config import EvolutionConfig, LearningConfig
 from evolution.genome import Genome
@@ -186,6 +191,12 @@ class LifetimeLearning:
         self._poses_before = np.zeros((n, 3))
         self._collided = np.zeros(n, dtype=bool)
         self._search_step = cfg.reference_speed * survival.config.control_dt
+        # Each behaviour with a goal, and its task's success (the docking, the IR exchange).
+        self._goals = tuple(
+            (index, success)
+            for index, name in enumerate(BEHAVIOUR_NAMES)
+            if (success := task_spec(name).success) is not None
+        )
         # Per table: the generation its agent was born into, and its captures and matings by
         # age bin (fitness_time_unit steps each).
         self._bin_steps = float(config.fitness_time_unit)
@@ -318,8 +329,9 @@ class LifetimeLearning:
         behaviour = e.behaviour
         mated = events.mate_partner >= 0
         goal = out.goal
-        np.copyto(goal, (behaviour == FORAGE) & events.docked)
-        goal |= (behaviour == MATE) & mated
+        goal[:] = False
+        for index, success in self._goals:
+            goal |= (behaviour == index) & success(events)
         goal &= e.open
         np.copyto(out.ended, events.died)
         reward = out.reward
@@ -327,13 +339,9 @@ class LifetimeLearning:
         reward += cfg.goal_reward * goal
         searching = e.open & (behaviour == SEARCH)
         if searching.any():
-            after = self.survival.world.poses()
-            before = self._poses_before
-            progress = (after[:, 0] - before[:, 0]) * np.cos(before[:, 2]) + (
-                after[:, 1] - before[:, 1]
-            ) * np.sin(before[:, 2])
+            progress = heading_progress(self._poses_before, self.survival.world.poses())
             self.survival.collisions(out=self._collided)
-            search = np.clip(progress / self._search_step, -1.0, 1.0)
+            search = progress_reward(progress, self._search_step)
             search -= cfg.collision_penalty * self._collided
             np.copyto(reward, search, where=searching)
         self._observe()

@@ -4,17 +4,26 @@
 >>> env = tasks.load("survival", seed=0)            # 4 robots, 5 packs, geometric vision
 >>> env = tasks.load("forage", seed=0, vision="rendered")
 
-Every task is a ``dm_env.Environment`` (``dm_control.rl.control.Environment``) over one
-:class:`~cyber_rodent.survival.SurvivalWorld`. Shapes, observations and actions are described
-in :mod:`cyber_rodent.tasks.base`; rewards in each task's docstring.
+Every task is defined once, as a :class:`~cyber_rodent.tasks.spec.TaskSpec` in the registry
+of :mod:`cyber_rodent.tasks.spec` (its rewards' terms in :mod:`cyber_rodent.tasks.rewards`); the
+dm-control tasks, the Gymnasium environments, the PettingZoo colony and the behaviours' episodes
+all read it. Every task is a ``dm_env.Environment`` (``dm_control.rl.control.Environment``)
+over one :class:`~cyber_rodent.survival.SurvivalWorld`. Shapes, observations and actions are
+described in :mod:`cyber_rodent.tasks.base`.
 """
 
-from cyber_rodent.tasks.base import OBSERVATION_NAMES, CyberRodentTask
-from cyber_rodent.tasks.environment import TASK_NAMES, TASKS, CyberRodentEnvironment, load
-from cyber_rodent.tasks.forage import Forage
-from cyber_rodent.tasks.mate import Mate
-from cyber_rodent.tasks.search import Search
-from cyber_rodent.tasks.survival import Survival
+from cyber_rodent.tasks.base import OBSERVATION_NAMES, CyberRodentTask, task_class
+from cyber_rodent.tasks.environment import (
+    TASK_NAMES,
+    TASKS,
+    CyberRodentEnvironment,
+    Forage,
+    Mate,
+    Search,
+    Survival,
+    load,
+)
+from cyber_rodent.tasks.spec import TaskSpec, register, task_names, task_spec, unregister
 
 __all__ = [
     "OBSERVATION_NAMES",
@@ -26,5 +35,11 @@ __all__ = [
     "Mate",
     "Search",
     "Survival",
+    "TaskSpec",
     "load",
+    "register",
+    "task_class",
+    "task_names",
+    "task_spec",
+    "unregister",
 ]

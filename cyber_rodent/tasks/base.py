@@ -1,4 +1,4 @@
-"""What every Cyber Rodent task shares: the world, vision, observations and actions.
+"""The Cyber Rodent tasks in dm-control: one task class, driven by the task's spec.
 
 A task owns one :class:`~cyber_rodent.survival.SurvivalWorld` (the same object the evolution
 runner steps on its lean path) and drives it from dm-control: :meth:`before_step` applies the
@@ -6,12 +6,16 @@ action (``SurvivalWorld.begin_step``), dm-control advances the physics by the wo
 (``mj_step``, no legacy split step, so the trajectory is the lean path's), and
 :meth:`after_step` runs the mechanics (``SurvivalWorld.end_step``) and the vision provider once.
 
-Multi-robot convention, the same in every task: a task *controls* ``k`` robots (robots
-``0..k-1``; the others, if any, are parked obstacles with wheels stopped and LEDs off). Every
-observation and action array has a leading axis of length ``k``, and the reward is a ``(k,)``
-array, one per controlled robot. Forage and Search control one robot (``k = 1``), Mate two,
-Survival all of them. One shape rule for all tasks lets a learner treat "one robot" and "two
-robots running the same behaviour" alike.
+What makes a task that task (field, start condition, termination, rewards, the robots'
+switches, episode length) is its :class:`~cyber_rodent.tasks.spec.TaskSpec`;
+:class:`CyberRodentTask` reads it and nothing else, so a registered spec is a task.
+
+Multi-robot convention, the same in every task: a task *controls* ``k`` robots, its learners
+(robots ``0..k-1``; the others, if any, are parked obstacles with wheels stopped and LEDs off).
+Every observation and action array has a leading axis of length ``k``, and the reward is a
+``(k,)`` array, one per controlled robot. Forage and Search control one robot (``k = 1``), Mate
+two, Survival all of them. One shape rule for all tasks lets a learner treat "one robot" and
+"two robots running the same behaviour" alike.
 
 Observations (per controlled robot; raw physical units, bounds in the specs):
 
@@ -32,18 +36,35 @@ An unseen target has bearing 0, distance ``camera.max_range`` and visible 0 (doc
 an unseen target's normalised distance to 1; ``vision.normalise_distance`` does that).
 
 Actions are a dict: ``wheels`` (k, 2) wheel rim speeds in m/s within the motor limit
-±``TOP_SPEED``, and ``led`` (k,) in [0, 1] (on above 0.5). Survival adds ``mate`` and
-``recharge`` (see there). The discrete command set that behaviours choose from is
-:mod:`cyber_rodent.commands`.
+±``TOP_SPEED``, and ``led`` (k,) in [0, 1] (on above 0.5; the spec's LED is the start state).
+A task whose learners decide their Mate signal or their recharge decision (the spec's ``mate``
+or ``recharge`` is None: Survival) adds ``mate`` (k,) in [0, 1] (above 0.5 the robot's agent
+runs Mate, willing to exchange) and ``recharge`` (k,) in [0, 1] (while docked, above 0.5
+continues recharging, otherwise recharging stops this step). The discrete command set that
+behaviours choose from is :mod:`cyber_rodent.commands`.
+
+Reward: the spec's ``control_reward`` (``"sparse"``, or ``"shaped"`` for Search), one entry per
+controlled robot; the fields of :class:`~cyber_rodent.tasks.rewards.RewardScales` its terms read
+are options of the task, defaulting to the spec's ``control_scales`` (Search:
+``reference_speed`` 0.5, ``collision_penalty`` 1; Survival: ``dock_reward`` and ``mate_reward``
+1). A task with a start condition takes ``start_in_view`` (default True; False starts from any
+placement).
+
+Episode: ``episode_steps`` control steps (the spec's), cut with discount 1; it ends with discount
+0 at the task's success (robot 0's goal) or at a death (:meth:`TaskSpec.dead`: any controlled
+robot's, or Survival's every robot's). The dm-control tasks run the survival rules they are
+given (default: the paper's, energy included), whatever the spec's ``endless_energy``, and
+leave a docking to the recharge decision (a Search robot that docks stops recharging on the
+next step, with the reflex).
 """
 
 from __future__ import annotations
 
-import inspect
+import dataclasses
 import math
 from collections import OrderedDict
 from collections.abc import Callable
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from dm_control.mjcf import Physics
@@ -52,6 +73,8 @@ from dm_env import specs
 
 from cyber_rodent import constants as C
 from cyber_rodent.survival import StepEvents, SurvivalConfig, SurvivalWorld
+from cyber_rodent.tasks.rewards import TaskRewards, total_reward
+from cyber_rodent.tasks.spec import TaskSpec
 from cyber_rodent.vision import BATTERY, FACE, LED, CameraConfig, VisionFrame, make_provider
 from cyber_rodent.world import World, WorldConfig
 
@@ -69,43 +92,72 @@ OBSERVATION_NAMES = (
 _TARGET_OBSERVATIONS = (("nearest_led", LED), ("nearest_face", FACE), ("nearest_battery", BATTERY))
 #: Threshold of the [0, 1] switch actions (``led``, ``mate``, ``recharge``): on above it.
 SWITCH_ON = 0.5
+#: Options of every task (``tasks.load(name, **options)``).
+BASE_OPTIONS = (
+    "n_robots",
+    "n_packs",
+    "episode_steps",
+    "survival",
+    "vision",
+    "camera",
+    "timestep",
+)
+#: Placements drawn for a start condition before giving up.
+START_ATTEMPTS = 200
 
 
 class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no type hints
-    """Base class of the tasks; subclasses set defaults and rewards.
+    """A task of its :attr:`task_spec`: field, start, termination, reward and switches.
+
+    The class of a registered task is :func:`cyber_rodent.tasks.task_class`'s subclass with its
+    spec set; :func:`cyber_rodent.tasks.load` builds it.
 
     Args:
         rng: the task's generator (placement, reflexes, start conditions, vision noise).
-        n_robots: robots in the field.
-        n_packs: battery packs in the field.
-        episode_steps: control steps per episode (the episode's lifetime); the episode is cut
+        n_robots: robots in the field (default: the spec's).
+        n_packs: battery packs in the field (default: the spec's).
+        episode_steps: control steps per episode (default: the spec's); the episode is cut
             there with discount 1.
         survival: the survival rules (energy, docking, mating).
         vision: vision provider, ``"geometric"`` (default) or ``"rendered"``.
         camera: the camera config shared by both providers.
         timestep: physics timestep, s (default: ``WorldConfig``'s).
+        **options: ``start_in_view`` (tasks with a start condition: re-draw the initial
+            placement until the condition holds; default True) and the reward's scales
+            (:meth:`TaskSpec.reward_options`), e.g. ``collision_penalty`` for Search,
+            ``dock_reward`` for Survival.
 
     Raises:
-        ValueError: for an invalid option (the message names it and its allowed range).
+        ValueError: for an unknown or invalid option (the message names it and its allowed
+            range).
     """
 
-    #: Robots controlled by the action (``None`` = all robots); subclasses override.
-    n_controlled: int | None = None
-    #: Task name for :func:`cyber_rodent.tasks.load`.
-    name = "base"
+    #: The task's spec (set by :func:`cyber_rodent.tasks.task_class`).
+    task_spec: ClassVar[TaskSpec]
 
     def __init__(
         self,
         rng: np.random.Generator,
         *,
-        n_robots: int = 4,
-        n_packs: int = 5,
-        episode_steps: int = 100,
+        n_robots: int | None = None,
+        n_packs: int | None = None,
+        episode_steps: int | None = None,
         survival: SurvivalConfig | None = None,
         vision: str = "geometric",
         camera: CameraConfig | None = None,
         timestep: float | None = None,
+        **options: Any,
     ):
+        spec = self.task_spec
+        unknown = sorted(set(options) - set(self.option_names()))
+        if unknown:
+            raise ValueError(
+                f"unknown option(s) {unknown} for task {spec.name!r}; allowed options: "
+                f"{', '.join(self.option_names())}"
+            )
+        n_robots = spec.field.robots if n_robots is None else n_robots
+        n_packs = spec.field.packs if n_packs is None else n_packs
+        episode_steps = spec.episode_steps if episode_steps is None else episode_steps
         if not isinstance(rng, np.random.Generator):
             raise ValueError(f"rng must be a numpy Generator, got {type(rng).__name__}")
         if isinstance(episode_steps, bool) or not isinstance(episode_steps, int | np.integer):
@@ -117,16 +169,24 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
             )
         if survival is not None and not isinstance(survival, SurvivalConfig):
             raise ValueError(f"survival must be a SurvivalConfig, got {type(survival).__name__}")
+        self.start_in_view = spec.start is not None and bool(options.pop("start_in_view", True))
+        kind = spec.control_reward
+        self.scales = dataclasses.replace(spec.control_scales, **options)
         self.episode_steps = int(episode_steps)
         self._rng = rng
         world_cfg = WorldConfig(n_robots=n_robots, n_packs=n_packs)
         if timestep is not None:
             world_cfg = WorldConfig(n_robots=n_robots, n_packs=n_packs, timestep=timestep)
-        k = n_robots if self.n_controlled is None else self.n_controlled
+        k = spec.n_learners(n_robots)
         if k > n_robots:
             raise ValueError(
-                f"n_robots must be >= {k} for the {self.name} task (it controls {k}), "
+                f"n_robots must be >= {k} for the {spec.name} task (it controls {k}), "
                 f"got {n_robots}"
+            )
+        start = spec.start
+        if self.start_in_view and start is not None and n_packs < start.min_packs:
+            raise ValueError(
+                f"n_packs must be >= {start.min_packs} for {spec.title} with start_in_view=True"
             )
         self.k = k
         world = World(world_cfg, rng)
@@ -138,14 +198,26 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         self.max_range = float(self.camera.max_range)
         self.frame: VisionFrame | None = None
         n = world.config.n_robots
-        # Commands of all robots, rebuilt from the action every step (preallocated).
+        # Commands of all robots, rebuilt from the action every step (preallocated); the
+        # spec's switches where no action sets them.
+        fixed = spec.switch_values(n)
         self._wheels = np.zeros((n, 2))
         self._led = np.zeros(n, dtype=bool)
-        self._mate = np.zeros(n, dtype=bool)
-        self._recharge = np.zeros(n, dtype=bool)
+        self._mate = fixed["mate"]
+        self._recharge = fixed["recharge"]
+        self._start_led = fixed["led"]
+        self.rewards = TaskRewards(spec.rewards(kind), self.scales, self.survival, k, spec.target)
+        self._reward = np.zeros(k)
+        self.success = False
         self.last_events: StepEvents = self.survival.events
         self._action_spec = self._make_action_spec()
+        self._action_switches = tuple(self._action_spec)[1:]  # led, then the spec's switches
         self._observation_spec = self._make_observation_spec()
+
+    @property
+    def name(self) -> str:
+        """The task's name (:func:`cyber_rodent.tasks.load`)."""
+        return self.task_spec.name
 
     # --- specs -------------------------------------------------------------------------------
     @property
@@ -160,6 +232,9 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
             (k, 2), np.float64, -C.TOP_SPEED, C.TOP_SPEED, name="wheels"
         )
         spec["led"] = specs.BoundedArray((k,), np.float64, 0.0, 1.0, name="led")
+        for switch in self.task_spec.switches:
+            if switch != "led":
+                spec[switch] = specs.BoundedArray((k,), np.float64, 0.0, 1.0, name=switch)
         return spec
 
     def _make_observation_spec(self) -> OrderedDict[str, specs.BoundedArray]:
@@ -195,39 +270,40 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
 
     # --- episode -----------------------------------------------------------------------------
     def initialize_episode(self, physics: Physics) -> None:
-        """New placement and newborn energies; subclasses add start conditions."""
+        """New placement and newborn energies, re-drawn until the start condition holds."""
         self.survival.reset(self._rng)
-        self.world.set_led(False)
-        self._start_episode()
+        self.world.set_led(self._start_led)
+        start = self.task_spec.start
+        if self.start_in_view and start is not None:
+            self._redraw_until(start.holds, start.description)
         self.frame = self.vision.observe()
+        self.rewards.reset(self.frame)
         self.survival.events.clear()
 
-    def _start_episode(self) -> None:
-        """Hook: task-specific initial state (placement is already drawn)."""
-
     def _redraw_until(
-        self, condition: Callable[[VisionFrame], object], what: str, attempts: int = 200
+        self, condition: Callable[[VisionFrame], object], what: str, attempts: int = START_ATTEMPTS
     ) -> None:
         """Re-draw the placement until ``condition(frame)`` holds (a start condition)."""
         for _ in range(attempts):
             if condition(self.vision.observe()):
                 return
             self.survival.reset(self._rng)
-            self._start_state()
+            self.world.set_led(self._start_led)
         raise RuntimeError(f"no placement with {what} in {attempts} draws")
-
-    def _start_state(self) -> None:
-        """Hook: state to restore after every re-draw of the placement (e.g. LEDs)."""
 
     def before_step(self, action: Any, physics: Physics | None = None) -> None:
         """Validate the action and hand the commands to the world (``begin_step``)."""
         self._read_action(action)
         self.survival.begin_step(self._wheels, self._led, self._mate, self._recharge)
+        self.rewards.begin()
 
     def after_step(self, physics: Physics | None = None) -> None:
-        """Energy, docking, mating (``end_step``), then what every robot sees."""
+        """Energy, docking, mating (``end_step``), then what every robot sees, and the reward."""
         self.last_events = self.survival.end_step()
         self.frame = self.vision.observe()
+        self.success = self.task_spec.reached(self.last_events)
+        terms = self.rewards.end(self.last_events, self.frame, self.success)
+        self._reward = total_reward(terms)
 
     # --- actions -------------------------------------------------------------------------------
     def _read_action(self, action: Any) -> None:
@@ -260,14 +336,10 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
             values[key] = value
         self._wheels[:k] = values["wheels"]
         self._wheels[k:] = 0.0
-        np.greater(values["led"], SWITCH_ON, out=self._led[:k])
-        self._led[k:] = False
-        self._set_decisions(values)
-
-    def _set_decisions(self, values: dict[str, np.ndarray]) -> None:
-        """Hook: the mate signals and recharge decisions for this step."""
-        self._mate[:] = False
-        self._recharge[:] = False
+        switches = {"led": self._led, "mate": self._mate, "recharge": self._recharge}
+        for name in self._action_switches:
+            np.greater(values[name], SWITCH_ON, out=switches[name][:k])
+            switches[name][k:] = False
 
     # --- observations --------------------------------------------------------------------------
     def get_observation(self, physics: Physics | None = None) -> OrderedDict[str, np.ndarray]:
@@ -293,26 +365,36 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         obs["recharge_steps"] = sw.recharge_steps[:k].astype(np.float64)
         return obs
 
-    # --- reward and termination (subclasses) -----------------------------------------------------
+    # --- reward and termination ---------------------------------------------------------------
     def get_reward(self, physics: Physics | None = None) -> np.ndarray:
-        raise NotImplementedError
+        """The step's reward, one per controlled robot (the spec's ``control_reward``)."""
+        return self._reward
 
     def get_termination(self, physics: Physics | None = None) -> float | None:
-        """Discount 0 if a controlled robot died (its energy reached 0), else continue."""
-        if not self.survival.alive[: self.k].all():
+        """Discount 0 at the task's success or at a death that ends it, else continue."""
+        if self.success or self.task_spec.dead(self.survival.alive, self.k):
             return 0.0
         return None
 
     @classmethod
     def option_names(cls) -> tuple[str, ...]:
         """The keyword options the task accepts (for :func:`cyber_rodent.tasks.load`)."""
-        names = []
-        for klass in cls.__mro__:
-            if "__init__" in vars(klass):
-                sig = inspect.signature(vars(klass)["__init__"])
-                names += [
-                    p.name
-                    for p in sig.parameters.values()
-                    if p.kind is p.KEYWORD_ONLY and p.name not in names
-                ]
-        return tuple(names)
+        spec = cls.task_spec
+        start = ("start_in_view",) if spec.start is not None else ()
+        return (*BASE_OPTIONS, *start, *spec.reward_options(spec.control_reward))
+
+
+def task_class(spec: TaskSpec) -> type[CyberRodentTask]:
+    """The dm-control task class of ``spec`` (one class per spec, made on first use)."""
+    cls = _CLASSES.get(spec)
+    if cls is None:
+        cls = type(
+            spec.title,
+            (CyberRodentTask,),
+            {"task_spec": spec, "__doc__": f"The {spec.name} task: {spec.summary}."},
+        )
+        _CLASSES[spec] = cls
+    return cls
+
+
+_CLASSES: dict[TaskSpec, type[CyberRodentTask]] = {}

@@ -9,18 +9,17 @@ from dm_control.rl import control
 from dm_env import specs
 
 from cyber_rodent.survival import SurvivalWorld
-from cyber_rodent.tasks.base import CyberRodentTask
-from cyber_rodent.tasks.forage import Forage
-from cyber_rodent.tasks.mate import Mate
-from cyber_rodent.tasks.search import Search
-from cyber_rodent.tasks.survival import Survival
+from cyber_rodent.tasks.base import CyberRodentTask, task_class
+from cyber_rodent.tasks.spec import FORAGE, MATE, SEARCH, SURVIVAL, task_spec
 
-#: Task classes by name.
+#: The built-in tasks' classes, made from their specs (:func:`task_class`).
+Survival = task_class(SURVIVAL)
+Forage = task_class(FORAGE)
+Mate = task_class(MATE)
+Search = task_class(SEARCH)
+#: The built-in tasks' classes by name; :func:`load` also finds tasks registered later.
 TASKS: dict[str, type[CyberRodentTask]] = {
-    "survival": Survival,
-    "forage": Forage,
-    "mate": Mate,
-    "search": Search,
+    cls.task_spec.name: cls for cls in (Survival, Forage, Mate, Search)
 }
 TASK_NAMES = tuple(TASKS)
 
@@ -67,20 +66,21 @@ def load(
     """Create the task ``name`` as a ``dm_env`` environment.
 
     Args:
-        name: ``"survival"``, ``"forage"``, ``"mate"`` or ``"search"`` (case-insensitive).
+        name: a registered task (:mod:`cyber_rodent.tasks.spec`): ``"survival"``,
+            ``"forage"``, ``"mate"``, ``"search"`` or one added with ``register``
+            (case-insensitive).
         seed: an integer seed or a ``np.random.Generator``; the same seed gives the same
             initial states and, for the same actions, the same trajectories. ``None`` draws
             fresh entropy from the OS.
         **options: task options, e.g. ``vision="rendered"``, ``n_robots=...``,
-            ``episode_steps=...``, ``survival=SurvivalConfig(...)``; see the task classes.
+            ``episode_steps=...``, ``survival=SurvivalConfig(...)``, the reward's scales; see
+            :class:`~cyber_rodent.tasks.base.CyberRodentTask`.
 
     Raises:
         ValueError: for an unknown task name or option (the message lists the allowed ones)
             or an invalid option value.
     """
-    if not isinstance(name, str) or name.lower() not in TASKS:
-        raise ValueError(f"unknown task {name!r}; allowed names: {', '.join(TASK_NAMES)}")
-    cls = TASKS[name.lower()]
+    cls = task_class(task_spec(name))
     allowed = cls.option_names()
     unknown = sorted(set(options) - set(allowed))
     if unknown:
