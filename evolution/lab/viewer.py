@@ -256,7 +256,8 @@ class TaskSource:
     """A dm-control task whose controlled robots run the learned behaviours."""
 
     def __init__(self, name: str, seed: int, policies: BehaviourPolicies) -> None:
-        from behaviours.inputs import FORAGE, MATE, SEARCH, behaviour_inputs
+        from behaviours.definitions import spec as behaviour_spec
+        from behaviours.inputs import BEHAVIOUR_NAMES, MATE, SEARCH, behaviour_inputs
         from cyber_rodent import tasks
         from cyber_rodent.commands import COMMAND_SPEEDS
 
@@ -269,8 +270,10 @@ class TaskSource:
         self.task = self.env.task
         self.world = self.task.world
         self.survival = self.task.survival
-        fixed = {"forage": FORAGE, "mate": MATE, "search": SEARCH}
-        self.fixed: int | None = fixed.get(name)
+        # A behaviour's own task (its training episode) runs that behaviour alone.
+        self.fixed: int | None = (
+            behaviour_spec(name).index if name in BEHAVIOUR_NAMES else None
+        )
         self.choice = np.full(self.world.config.n_robots, SEARCH, dtype=np.int64)
         self.episode, self.episode_step, self.episode_return = 1, 0, 0.0
         self.last_episode = ""
