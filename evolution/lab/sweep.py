@@ -17,8 +17,9 @@ Backends:
   killed worker breaks a ``ProcessPoolExecutor``; the pool is rebuilt and the unfinished runs
   resumed.
 - ``ray``: the runs go to an existing cluster (``ray_address="auto"`` or ``"host:port"``) or to
-  a fresh Ray instance here (``"local"``), as many at a time as the cluster has CPUs (at most
-  ``workers`` where given), in :attr:`SweepSpec.runs` order.
+  a fresh Ray instance here (``"local"``, listening on loopback only: :func:`init_local_ray`),
+  as many at a time as the cluster has CPUs (at most ``workers`` where given), in
+  :attr:`SweepSpec.runs` order.
 
 On a cluster the worker nodes usually do not share the driver's filesystem, so the Ray backend
 never lets a task write to ``out``: the driver's disk holds every run's state. A run advances
@@ -123,6 +124,8 @@ LEARNING_STEP_COST = 1.2
 STEPS_PER_LIFE = {"ee": 1.2, "ce": 0.95}
 #: Newest checkpoints each run directory keeps (:func:`evolution.lab.api.run`'s default).
 KEEP_CHECKPOINTS = 3
+#: The address a Ray instance started here (``--ray local``) listens on.
+LOOPBACK = "127.0.0.1"
 #: Generations one Ray task advances its run by: a lost node costs at most this much of each
 #: run it held, and every chunk pays one checkpoint's transfer and one runner rebuild.
 CHUNK_GENERATIONS = 1
@@ -726,12 +729,11 @@ def _sweep_ray(
             "log_to_driver": False,
             "runtime_env": {"env_vars": dict(WORKER_ENV)},
         }
-        if address == "local":
-            kwargs["num_cpus"] = workers or os.cpu_count() or 1
-        else:
-            kwargs["address"] = address
         try:
-            ray.init(**kwargs)
+            if address == "local":
+                init_local_ray(ray, num_cpus=workers or os.cpu_count() or 1, **kwargs)
+            else:
+                ray.init(address=address, **kwargs)
         except (ConnectionError, RuntimeError) as err:
             hint = ""
             if address != "local" and "RAY_AUTH_MODE" not in os.environ:
@@ -813,6 +815,40 @@ def _sweep_ray(
             writer.close()
         if started_here:
             ray.shutdown()
+
+
+def init_local_ray(ray: Any, **kwargs: Any) -> None:
+    """Start a Ray instance on this machine (``--ray local``) whose every process listens on
+    loopback only: no port of it is reachable from the network.
+
+    ``ray.init(_node_ip_address="127.0.0.1")`` alone does not do it: while Ray allows
+    multi-node clusters (on Linux, always) it replaces a loopback node address by this machine's
+    network address, and its servers then listen on every interface. The switch it reads for
+    that (``ray_constants.ENABLE_RAY_CLUSTER``, which ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``
+    turns off for a whole process) is turned off only while this one-node instance starts,
+    then restored, so the process can still drive a real cluster later. The switch is not
+    public API: where a Ray version lacks it, Ray starts as it would without it, and
+    ``tests/test_ray_cluster.py`` (which lists the instance's listening sockets) fails.
+
+    Args:
+        ray: the ``ray`` module.
+        **kwargs: ``ray.init``'s other arguments.
+    """
+    constants: Any = None
+    try:
+        from ray._private import ray_constants
+
+        constants = ray_constants
+    except ImportError:
+        pass
+    saved = getattr(constants, "ENABLE_RAY_CLUSTER", None)
+    if saved is not None:
+        constants.ENABLE_RAY_CLUSTER = False
+    try:
+        ray.init(_node_ip_address=LOOPBACK, **kwargs)
+    finally:
+        if saved is not None:
+            constants.ENABLE_RAY_CLUSTER = saved
 
 
 def _generation_of(checkpoint: str) -> int:
