@@ -218,3 +218,22 @@ def test_unusable_tensorboard_dir_is_refused_before_anything_is_created(
         assert "--tensorboard" in r.stderr and message in r.stderr, r.stderr
         assert not out.exists()
     assert blocker.read_text() == "not a directory"
+
+
+@pytest.mark.slow
+def test_ray_sweep_writes_tensorboard_from_the_driver(tmp_path: Path) -> None:
+    pytest.importorskip("ray")
+    pytest.importorskip("tensorboard")
+    spec = SweepSpec(("ee",), (0, 1), 2, TINY, policies="reactive")
+    board = tmp_path / "tb"
+    results = sweep(
+        spec, tmp_path / "sweep", workers=2, executor="ray", ray_address="local",
+        progress=False, tensorboard=board,
+    )  # fmt: skip
+    local = sweep(spec, tmp_path / "local", workers=2, progress=False)
+    assert sorted(p.name for p in board.iterdir()) == ["ee-seed000", "ee-seed001"]
+    for member, table in results.items():
+        pd.testing.assert_frame_equal(table, local[member])  # monitoring changes nothing
+        directory = board / f"{member.method}-seed{member.seed:03d}"
+        assert len(list(directory.glob("events.out.tfevents.*"))) == 1  # one writer per run
+        assert_board_equals_table(directory, table)
