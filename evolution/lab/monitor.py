@@ -31,7 +31,7 @@ sweep into ``DIR/<cell>/<method>-seed<NNN>``, mirroring its run directories, so 
 ``tensorboard --logdir DIR`` overlays the runs.
 
 **Resume** starts a new event file in the same directory (TensorBoard reads every event file of
-a directory as one run, in order). Its first event is a session start at the first generation
+a directory as one run, in order). Its first event is a restart marker at the first generation
 the resumed run will close, N, the generations of its checkpoint: TensorBoard discards the
 steps >= N written before the interruption (a run checkpointing every k generations may have
 written up to k - 1 generations past its last checkpoint, which the resumed run closes again,
@@ -207,7 +207,7 @@ class GenerationMonitor:
 class TensorBoardWriter:
     """Writes :class:`GenerationRecord` s into one TensorBoard run directory.
 
-    Opening starts a new event file whose first event is a session start at ``start`` (see
+    Opening starts a new event file whose first event is a restart marker at ``start`` (see
     the module docstring: TensorBoard then discards any step >= ``start`` of earlier files of
     the directory). Every record is flushed to disk as it is written, so TensorBoard shows it
     on its next reload.
