@@ -10,7 +10,7 @@ $(STAMP): pyproject.toml .ci/system-deps.sh
 	bash .ci/system-deps.sh
 	$(PY) -m venv $(VENV)
 	$(VENV)/bin/pip install -q --upgrade pip
-	$(VENV)/bin/pip install -q -e '.[dev,export,cluster,rl]'
+	$(VENV)/bin/pip install -q -e '.[dev,export,cluster,rl,monitor]'
 	touch $(STAMP)
 
 setup: $(STAMP)

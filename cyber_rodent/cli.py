@@ -218,6 +218,7 @@ def _cmd_evolve(args: argparse.Namespace) -> int:
             max_steps=args.max_steps,
             progress=not args.no_progress,
             argv=sys.argv,
+            tensorboard=args.tensorboard,
         )
     except KeyboardInterrupt:
         print(
@@ -306,7 +307,10 @@ def _cmd_resume(args: argparse.Namespace) -> int:
 
     try:
         path, table = experiment.resume_run(
-            args.dir, progress=not args.no_progress, generations=args.generations
+            args.dir,
+            progress=not args.no_progress,
+            generations=args.generations,
+            tensorboard=args.tensorboard,
         )
     except KeyboardInterrupt:
         print(
@@ -366,6 +370,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     executor = "ray" if args.ray is not None else "local"
     if executor == "ray":
         check_ray_address(args.ray)  # before anything is written
+    if args.tensorboard is not None:
+        from evolution.lab.monitor import check_tensorboard
+
+        check_tensorboard(args.tensorboard)
     workers = args.workers or os.cpu_count() or 1
     out = experiment.prepare_sweep_dir(args.out, resume=args.resume, force=args.force)
     seconds = projected_seconds(spec, workers)
@@ -384,6 +392,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             executor=executor,
             ray_address=args.ray or "local",
             progress=not args.no_progress,
+            tensorboard=args.tensorboard,
         )
     except KeyboardInterrupt:
         print(
@@ -472,6 +481,17 @@ def _add_max_steps(p: argparse.ArgumentParser) -> None:
         help="stop a run after this many control steps in all, even if its generations are "
         "not complete: a budget for populations that may never complete one (agents that "
         "learn from zero die before they mate); resume keeps it (default: no budget)",
+    )
+
+
+def _add_tensorboard(p: argparse.ArgumentParser, where: str) -> None:
+    p.add_argument(
+        "--tensorboard",
+        default=None,
+        metavar="DIR",
+        help=f"write each generation's statistics and the population's weights to TensorBoard "
+        f"as it closes, {where}; watch with `tensorboard --logdir DIR` (needs "
+        "pip install 'cyber-rodent[monitor]'; results are unchanged)",
     )
 
 
@@ -637,6 +657,7 @@ def build_parser(command: str | None = None) -> CliParser:
         "'transfer --generation' needs)",
     )
     _add_max_steps(evolve)
+    _add_tensorboard(evolve, "in DIR/<name of --out>")
     _add_run_options(evolve)
     evolve.set_defaults(func=_cmd_evolve)
 
@@ -653,6 +674,7 @@ def build_parser(command: str | None = None) -> CliParser:
         default=None,
         help="new target (default: the run's own)",
     )
+    _add_tensorboard(resume, "in DIR/<name of the run directory>")
     resume.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS)
     resume.set_defaults(func=_cmd_resume)
 
@@ -697,6 +719,7 @@ def build_parser(command: str | None = None) -> CliParser:
         "cell of the product runs every method and seed)",
     )
     _add_max_steps(sweep)
+    _add_tensorboard(sweep, "each run in DIR/<method>-seed<NNN> (with --grid: DIR/<cell>/...)")
     _add_run_options(sweep)
     sweep.set_defaults(func=_cmd_sweep)
 

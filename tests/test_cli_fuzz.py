@@ -111,6 +111,8 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
             ["evolve", "--set", "reproduction.energy_full=0", "--out", "{new}"],
             "reproduction.energy_full must be a number in (0",
         ),
+        (["evolve", "--out", "{new}", "--tensorboard", "{file}"], "--tensorboard"),
+        (["evolve", "--out", "{new}", "--tensorboard", "{file}/tb"], "is a file"),
     ],
     "sweep": [
         (["sweep"], "--out"),
@@ -159,6 +161,8 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
         (["sweep", "--out", "{empty}", "--resume"], "no sweep"),
         (["sweep", "--out", "{new}", "--policies", "x"], "invalid choice"),
         (["sweep", "--out", "{new}", "--config", "{bad_toml}"], "not valid TOML"),
+        (["sweep", "--out", "{new}", "--tensorboard", "{file}"], "--tensorboard"),
+        (["sweep", "--out", "{new}", "--tensorboard", "{file}/tb"], "is a file"),
     ],
     "resume": [
         (["resume"], "required"),
@@ -173,6 +177,7 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
         (["resume", "{empty_record_run}"], "malformed"),
         (["resume", "{alien_run}", "--generations", "0"], "--generations"),
         (["resume", "{alien_run}", "--generations", "x"], "--generations"),
+        (["resume", "{alien_run}", "--tensorboard", "{file}/tb"], "--tensorboard"),
     ],
     "plot": [
         (["plot"], "required"),

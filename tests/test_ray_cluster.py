@@ -1,4 +1,4 @@
-"""A Ray sweep on a real two-node cluster that loses a node mid-sweep.
+"""A Ray sweep on a real two-node cluster that loses a node mid-sweep, and Ray kept on loopback.
 
 Two ``ray start`` nodes on this machine, one CPU each, each with its own working and
 temporary directories. Where mount namespaces are available, both nodes run in one of their
@@ -8,6 +8,14 @@ second node is killed (its raylet, then the rest of it) while it runs a chunk of
 already stored a checkpoint; the sweep must finish, retrying that run from the driver's
 checkpoint, with the very files the local backend writes.
 
+Tests talk to loopback only. The nodes start with ``--node-ip-address=127.0.0.1``, but a Ray
+that allows multi-node clusters replaces a loopback address by the machine's network address
+(and its servers then listen on every interface), so the nodes and the driver also run in a
+network namespace of their own whose only interface is loopback: there the machine's address
+is 127.0.0.1. ``sweep --ray local`` starts its instance on loopback itself
+(:func:`evolution.lab.sweep.init_local_ray`). The tests read the listening sockets of every
+process Ray started (``/proc``) and fail on any address but 127.0.0.1 or ::1.
+
 Run with ``pytest -m slow -s tests/test_ray_cluster.py`` to see the nodes start, the kill and
 the sweep's output.
 """
@@ -15,6 +23,7 @@ the sweep's output.
 from __future__ import annotations
 
 import contextlib
+import ipaddress
 import json
 import os
 import re
@@ -89,6 +98,137 @@ def hiding_prefix(hidden: Path) -> list[str] | None:
         return None
     finally:
         (hidden / "probe").unlink()
+
+
+#: Run by a process that holds a network namespace: brings its loopback interface up (ioctl
+#: SIOCGIFFLAGS, then SIOCSIFFLAGS with IFF_UP), says so, and waits to be killed.
+HOLD_NETWORK = """
+import fcntl, signal, socket, struct
+sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+flags = struct.unpack("16sH22x", fcntl.ioctl(sock, 0x8913, struct.pack("16sH22x", b"lo", 0)))[1]
+fcntl.ioctl(sock, 0x8914, struct.pack("16sH22x", b"lo", flags | 1))
+print("up", flush=True)
+signal.pause()
+"""
+#: Run inside it: the namespace has no interface but loopback, and loopback works.
+PROBE_NETWORK = """
+import socket
+names = [name for _, name in socket.if_nameindex()]
+assert names == ["lo"], names
+server = socket.create_server(("127.0.0.1", 0))
+socket.create_connection(server.getsockname(), timeout=5).close()
+"""
+
+
+@contextlib.contextmanager
+def private_network() -> Iterator[list[str] | None]:
+    """A network namespace whose only interface is loopback, held by a process of its own for
+    the duration; yields the command prefix that runs a command in it (None where this machine
+    allows none)."""
+    unshare, nsenter = shutil.which("unshare"), shutil.which("nsenter")
+    if unshare is None or nsenter is None:
+        yield None
+        return
+    for create, enter in (
+        (["--net"], ["--net"]),
+        (["--user", "--map-root-user", "--net"], ["--user", "--net", "--preserve-credentials"]),
+    ):
+        holder = subprocess.Popen(
+            [unshare, *create, sys.executable, "-c", HOLD_NETWORK], stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL, start_new_session=True,
+        )  # fmt: skip
+        try:
+            assert holder.stdout is not None
+            if holder.stdout.readline().strip() == b"up":
+                prefix = [nsenter, f"--target={holder.pid}", *enter, "--"]
+                probe = [*prefix, sys.executable, "-c", PROBE_NETWORK]
+                if subprocess.run(probe, capture_output=True, timeout=60).returncode == 0:
+                    yield prefix
+                    return
+        finally:
+            holder.kill()
+            holder.wait()
+    yield None
+
+
+def listening(pids: list[int]) -> dict[int, list[tuple[str, int]]]:
+    """The TCP addresses each of ``pids`` listens on (from /proc, in each one's own network
+    namespace): pid -> [(address, port)]."""
+    found: dict[int, list[tuple[str, int]]] = {}
+    for pid in pids:
+        sockets = set()
+        with contextlib.suppress(OSError):
+            for fd in Path(f"/proc/{pid}/fd").iterdir():
+                with contextlib.suppress(OSError):
+                    link = os.readlink(fd)
+                    if link.startswith("socket:["):
+                        sockets.add(link[len("socket:[") : -1])
+        for table in ("tcp", "tcp6"):
+            try:
+                rows = Path(f"/proc/{pid}/net/{table}").read_text().splitlines()[1:]
+            except OSError:
+                continue
+            for row in rows:
+                fields = row.split()
+                if fields[3] == "0A" and fields[9] in sockets:  # TCP_LISTEN, ours
+                    found.setdefault(pid, []).append(_socket_address(fields[1]))
+    return found
+
+
+def _socket_address(text: str) -> tuple[str, int]:
+    """``0100007F:1F90`` or its 32-digit IPv6 form, as /proc/net/tcp* writes it."""
+    host, port = text.split(":")
+    raw = bytes.fromhex(host)
+    words = b"".join(raw[i : i + 4][::-1] for i in range(0, len(raw), 4))  # per 32-bit word
+    return str(ipaddress.ip_address(words)), int(port, 16)
+
+
+def is_loopback(address: str) -> bool:
+    """127.0.0.0/8 or ::1, an IPv4-mapped IPv6 address included (a dual-stack socket)."""
+    ip = ipaddress.ip_address(address)
+    mapped = getattr(ip, "ipv4_mapped", None)
+    return (mapped or ip).is_loopback
+
+
+def assert_loopback_only(
+    processes: dict[int, str], what: str, servers: frozenset[str] = frozenset({"raylet"})
+) -> None:
+    """Every listening socket of ``processes`` (pid -> name) is on loopback, and ``servers``
+    are among the processes that listen (so the check looked at the right ones)."""
+    found = listening(list(processes))
+    shown = {f"{processes[pid]}[{pid}]": sorted(set(found[pid])) for pid in sorted(found)}
+    say(f"{what} listens on: {shown}")
+    names = {processes[pid] for pid in found}
+    assert servers <= names, f"{what}: {sorted(servers - names)} not found listening: {shown}"
+    exposed = {name: [a for a in addresses if not is_loopback(a[0])] for name, addresses in
+               shown.items()}  # fmt: skip
+    exposed = {name: addresses for name, addresses in exposed.items() if addresses}
+    assert not exposed, f"{what} listens beyond loopback: {exposed}"
+
+
+def descendants(pid: int) -> dict[int, str]:
+    """Live processes descended from ``pid``: pid -> name."""
+    parents: dict[int, tuple[int, str]] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        name = stat[stat.index("(") + 1 : stat.rindex(")")]
+        fields = stat[stat.rindex(")") + 2 :].split()
+        if fields[0] != "Z":
+            parents[int(entry.name)] = (int(fields[1]), name)
+    found: dict[int, str] = {}
+    frontier = [pid]
+    while frontier:
+        parent = frontier.pop()
+        for child, (ppid, name) in parents.items():
+            if ppid == parent and child not in found:
+                found[child] = name
+                frontier.append(child)
+    return found
 
 
 def session_processes(session: int) -> dict[int, str]:
@@ -212,29 +352,43 @@ def comparable(name: str, data: bytes) -> object:
 
 
 class Cluster(NamedTuple):
-    """A two-node cluster and the driver's directory, which its nodes cannot see."""
+    """A two-node cluster and the driver's directory, which its nodes cannot see.
+
+    ``network`` runs a command in the cluster's network namespace, where a driver reaches it.
+    """
 
     address: str
     head: Node
     worker: Node
     driver: Path
     env: dict[str, str]
+    network: list[str]
 
 
 @pytest.fixture
 def cluster(tmp_path: Path) -> Iterator[Cluster]:
-    """Start the head and a worker node (one CPU each); kill both whatever happens."""
+    """Start the head and a worker node (one CPU each) on loopback, in a network namespace of
+    their own; kill both whatever happens."""
     pytest.importorskip("ray")
-    import ray.util
+    with private_network() as network:
+        if network is None:
+            pytest.skip(
+                "a multi-node Ray cluster stays on loopback only in a network namespace of its "
+                "own, and this machine allows none (unshare --net, nsenter)"
+            )
+        say(f"the nodes and the driver run in a network namespace with loopback only ({network})")
+        yield from _cluster(tmp_path, network)
 
+
+def _cluster(tmp_path: Path, network: list[str]) -> Iterator[Cluster]:
     driver = tmp_path / "driver"  # the driver's filesystem: --out of both sweeps
     driver.mkdir()
     env = {
         **os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(32),
         "RAY_USAGE_STATS_ENABLED": "0", "LP_NUM_THREADS": "1", "MUJOCO_GL": "egl",
     }  # fmt: skip
-    prefix = hiding_prefix(driver)
-    if prefix is None:
+    prefix = hiding_prefix(driver) or []
+    if not prefix:
         say("no mount namespaces here: the nodes see the driver's directory (and must not use it)")
     else:
         say(
@@ -244,16 +398,16 @@ def cluster(tmp_path: Path) -> Iterator[Cluster]:
     # Short: Ray's socket paths under its temp dir must fit a Unix socket name.
     root = Path(tempfile.mkdtemp(prefix="cr-ray-", dir="/tmp" if Path("/tmp").is_dir() else None))
     head, worker = Node("head", root), Node("worker", root)
-    # Both nodes get this machine's address; a driver here attaches to the head node.
-    head_ip: str = ray.util.get_node_ip_address()  # type: ignore[no-untyped-call]
+    # Both nodes on loopback; a driver in the same network namespace attaches to the head node.
+    loopback = "--node-ip-address=127.0.0.1"
     port = free_ports(1)[0]
-    address = f"{head_ip}:{port}"
+    address = f"127.0.0.1:{port}"
     try:
         dashboard = free_ports(1)[0]
-        head_options = ["--head", f"--port={port}", "--include-dashboard=false"]
-        head.start([*head_options, f"--dashboard-port={dashboard}"], prefix or [], env)
-        worker.start([f"--address={address}"], prefix or [], env)
-        yield Cluster(address, head, worker, driver, env)
+        head_options = ["--head", loopback, f"--port={port}", "--include-dashboard=false"]
+        head.start([*head_options, f"--dashboard-port={dashboard}"], [*network, *prefix], env)
+        worker.start([f"--address={address}", loopback], [*network, *prefix], env)
+        yield Cluster(address, head, worker, driver, env, network)
     finally:
         worker.stop()
         head.stop()
@@ -262,8 +416,11 @@ def cluster(tmp_path: Path) -> Iterator[Cluster]:
 
 def test_sweep_on_two_nodes_survives_losing_one(tmp_path: Path, cluster: Cluster) -> None:
     out = cluster.driver / "ray"
-    command = [sys.executable, "-m", "cyber_rodent.cli", *SWEEP, "--ray", cluster.address]
-    say(f"driver: {' '.join(command[2:])} --out {out}")
+    command = [
+        *cluster.network, sys.executable, "-m", "cyber_rodent.cli", *SWEEP, "--ray",
+        cluster.address,
+    ]  # fmt: skip
+    say(f"driver: {' '.join(command[len(cluster.network) + 2 :])} --out {out}")
     log = tmp_path / "sweep.log"
     started = time.monotonic()
     with log.open("w") as output:
@@ -294,6 +451,9 @@ def test_sweep_on_two_nodes_survives_losing_one(tmp_path: Path, cluster: Cluster
     text = log.read_text()
     say(f"sweep finished in {time.monotonic() - started:.1f} s, exit {code}:\n{text}")
     assert code == 0
+    assert cluster.head.session is not None
+    servers = frozenset({"gcs_server", "raylet"})
+    assert_loopback_only(session_processes(cluster.head.session), "the head node", servers)
     retries = re.findall(r"retry \d+ of \d+ from generation (\d+)", text)
     assert retries, "no run was retried after the node was lost"
     assert max(int(g) for g in retries) >= 1  # continued from a checkpoint, not from scratch
@@ -318,3 +478,56 @@ def test_sweep_on_two_nodes_survives_losing_one(tmp_path: Path, cluster: Cluster
     for name in ours:
         assert comparable(name, ours[name]) == comparable(name, theirs[name]), name
     say("every run's files equal the local backend's, byte for byte (run.json but its commit)")
+
+
+def test_cluster_listens_on_loopback_only(cluster: Cluster) -> None:
+    """Both nodes, their workers and a driver listen on 127.0.0.1 or ::1 only."""
+    driver = """
+import json, os, sys, ray
+ray.init(address=sys.argv[1], log_to_driver=False)
+where = ray.remote(lambda: ray.util.get_node_ip_address())
+print(json.dumps(ray.get([where.remote() for _ in range(4)])))
+print(os.getpid(), flush=True)
+sys.stdin.read()  # until the test has looked at this driver's sockets
+"""
+    process = subprocess.Popen(
+        [*cluster.network, sys.executable, "-c", driver, cluster.address], env=cluster.env,
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert process.stdout is not None and process.stdin is not None
+        nodes = json.loads(process.stdout.readline())
+        say(f"the tasks ran on nodes {nodes}")
+        pid = int(process.stdout.readline())
+        for node in (cluster.head, cluster.worker):
+            assert node.session is not None
+            servers = frozenset({"gcs_server", "raylet"} if node is cluster.head else {"raylet"})
+            assert_loopback_only(session_processes(node.session), f"the {node.name} node", servers)
+        driver_processes = {pid: "driver"} | descendants(pid)
+        assert_loopback_only(driver_processes, "the driver", frozenset({"driver"}))
+        assert set(nodes) == {"127.0.0.1"}
+        process.stdin.close()
+        assert process.wait(timeout=60) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+def test_local_ray_listens_on_loopback_only() -> None:
+    """``sweep --ray local``'s Ray instance: every process it starts listens on loopback."""
+    ray = pytest.importorskip("ray")
+    from evolution.lab.sweep import init_local_ray
+
+    if ray.is_initialized():
+        ray.shutdown()
+    init_local_ray(ray, num_cpus=1, include_dashboard=False, log_to_driver=False)
+    try:
+        where = ray.remote(lambda: ray.util.get_node_ip_address())
+        nodes = ray.get([where.remote() for _ in range(2)])  # a worker process listens too
+        processes = {os.getpid(): "driver"} | descendants(os.getpid())
+        servers = frozenset({"driver", "gcs_server", "raylet"})
+        assert_loopback_only(processes, "the local Ray instance", servers)
+        assert set(nodes) == {"127.0.0.1"}
+    finally:
+        ray.shutdown()

@@ -17,6 +17,10 @@ statistics. With ``out_dir`` it also writes, atomically:
 - ``run.json``: config, seed, behaviour policies, versions and headline numbers;
 - ``checkpoints/gen_NNNNN.ckpt``: the complete state every ``checkpoint_every`` generations.
 
+``tensorboard=DIR`` also writes each generation's statistics and the population's weights into
+TensorBoard event files in ``DIR`` as the generation closes (:mod:`evolution.lab.monitor`; the
+extra ``monitor``), with or without ``out_dir``; the results are the same either way.
+
 ``resume=True`` continues from the newest checkpoint in ``out_dir`` (the run's config, seed and
 behaviour policies must match, else a :class:`~evolution.checkpoint.CheckpointError` and nothing
 is touched); the result is bit-identical to an uninterrupted run. Without ``resume`` an
@@ -25,11 +29,13 @@ is touched); the result is bit-identical to an uninterrupted run. Without ``resu
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import json
 import os
 import subprocess
+from collections.abc import Iterator
 from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -41,6 +47,7 @@ from behaviours import BehaviourPolicies
 from cyber_rodent.atomic import atomic_output, remove_stale_temporaries, write_text
 from cyber_rodent.validation import check_integer
 from evolution.config import EvolutionConfig
+from evolution.lab.monitor import TensorBoardMonitor, check_tensorboard
 from evolution.runner import (
     METHODS,
     EvolutionRunner,
@@ -130,6 +137,7 @@ def run(
     max_steps: int | None = None,
     progress: bool = False,
     versions: dict[str, Any] | None = None,
+    tensorboard: str | os.PathLike[str] | None = None,
     **overrides: Any,
 ) -> pd.DataFrame:
     """Run EE or CE for ``generations`` generations and return the statistics table.
@@ -152,6 +160,10 @@ def run(
         versions: with ``out_dir``: a record of the software environment, written as
             ``versions.json`` once the run is built, just before ``run.json`` (so a run that
             fails to start leaves no directory behind).
+        tensorboard: a TensorBoard run directory: each generation's statistics and weights
+            are written there as it closes (:mod:`evolution.lab.monitor`; a resumed run starts
+            a new event file there, each generation appearing once). Needs the extra
+            ``monitor``; checked before anything is created.
         **overrides: config fields, see :func:`make_config`.
 
     Returns:
@@ -160,7 +172,8 @@ def run(
     Raises:
         ValueError: bad arguments or overrides (population not divisible by robots,
             probabilities outside [0, 1], ...), or an ``out_dir`` holding another run without
-            ``resume``.
+            ``resume``, or a ``tensorboard`` directory that cannot be written or without the
+            ``tensorboard`` package.
         CheckpointError: ``resume`` found a corrupt or incompatible checkpoint (nothing is
             modified).
         FileNotFoundError: no ``policies`` given and the trained values are not installed.
@@ -173,12 +186,18 @@ def run(
     check_integer("keep_checkpoints", keep_checkpoints, 0)
     if max_steps is not None:
         check_integer("max_steps", max_steps, 0)
+    board = check_tensorboard(tensorboard, "tensorboard") if tensorboard is not None else None
     policies = policies if policies is not None else default_policies()
     if out_dir is None:
         if resume:
             raise ValueError("resume=True needs the out_dir of the run to continue")
-        with EvolutionRunner(run_config, seed, policies) as runner:
-            return runner.run(generations, max_steps=max_steps, progress=progress)
+        with (
+            EvolutionRunner(run_config, seed, policies) as runner,
+            monitoring(board, runner) as monitor,
+        ):
+            return runner.run(
+                generations, max_steps=max_steps, progress=progress, on_generation=monitor
+            )
 
     out = Path(out_dir)
     checkpoints = out / CHECKPOINT_DIR
@@ -199,24 +218,40 @@ def run(
             text = json.dumps(versions, indent=2, sort_keys=True, default=repr) + "\n"
             write_text(out / VERSIONS_FILE, text)
         _write_json(out / RUN_FILE, run_record(runner, generations, max_steps))
+        with monitoring(board, runner) as monitor:
 
-        def write_results(r: EvolutionRunner) -> None:
-            write_tables(out, r.statistics(), robot_table(r), learning_table(r))
+            def write_results(r: EvolutionRunner) -> None:
+                write_tables(out, r.statistics(), robot_table(r), learning_table(r))
+                if monitor is not None:
+                    monitor(r)
 
-        table = runner.run(
-            generations,
-            checkpoint_dir=checkpoints,
-            checkpoint_every=checkpoint_every,
-            keep_checkpoints=keep_checkpoints,
-            max_steps=max_steps,
-            progress=progress,
-            on_generation=write_results,
-        )
+            table = runner.run(
+                generations,
+                checkpoint_dir=checkpoints,
+                checkpoint_every=checkpoint_every,
+                keep_checkpoints=keep_checkpoints,
+                max_steps=max_steps,
+                progress=progress,
+                on_generation=write_results,
+            )
         write_tables(out, table, robot_table(runner), learning_table(runner))
         with atomic_output(out / EVENTS_FILE) as temp:
             runner.events.write_csv(temp)
         _write_json(out / RUN_FILE, run_record(runner, generations, max_steps))
     return table
+
+
+@contextlib.contextmanager
+def monitoring(
+    board: Path | None, runner: EvolutionRunner
+) -> Iterator[TensorBoardMonitor | None]:
+    """A TensorBoard monitor of ``runner`` writing into ``board`` from the generation it
+    stands at (None without ``board``), closed on exit."""
+    if board is None:
+        yield None
+        return
+    with TensorBoardMonitor(board, runner.completed_generations) as monitor:
+        yield monitor
 
 
 def robot_table(runner: EvolutionRunner) -> pd.DataFrame:

@@ -56,6 +56,7 @@ from evolution.lab.comparison import write_report
 from evolution.lab.figures import plot_completions, plot_fig6, summarise_runs
 from evolution.lab.grid import cells, read_grid
 from evolution.lab.learning_figures import load_learning, write_learning_report
+from evolution.lab.monitor import check_tensorboard
 from evolution.lab.sweep import load_sweep
 from evolution.lab.video import MAX_FRAMES, VideoConfig, render_video
 from evolution.runner import (
@@ -267,12 +268,15 @@ def evolve(
     max_steps: int | None = None,
     progress: bool = True,
     argv: list[str] | None = None,
+    tensorboard: str | os.PathLike[str] | None = None,
 ) -> tuple[Path, pd.DataFrame]:
     """Run (or continue) one EE/CE run in a run directory and draw its figures.
 
     ``max_steps`` stops the run after that many control steps in all even if its generations
     are not complete (a population that cannot complete its generations: agents that learn
-    from zero die before they mate).
+    from zero die before they mate). ``tensorboard=DIR`` writes each generation to TensorBoard
+    as it closes, in ``DIR/<name of the run directory>`` (:mod:`evolution.lab.monitor`), so
+    that runs sharing ``DIR`` are overlaid.
 
     Everything is validated before the directory is touched, and the directory is created
     only once the run is built (:func:`evolution.lab.api.run` writes ``versions.json`` and
@@ -288,6 +292,7 @@ def evolve(
     if max_steps is not None:
         check_integer("--max-steps", max_steps, 1, MAX_RUN_STEPS)
     chosen = policies_by_name(policies)
+    board = check_tensorboard(tensorboard) if tensorboard is not None else None
     path = prepare_out_dir(out, resume=resume, force=force)
     table = run(
         method,
@@ -301,6 +306,7 @@ def evolve(
         max_steps=max_steps,
         progress=progress,
         versions=environment_versions(argv),
+        tensorboard=None if board is None else board / path.resolve().name,
         **overrides,
     )
     plot_run_dir(path)
@@ -326,17 +332,23 @@ def read_run_record(path: str | os.PathLike[str]) -> dict[str, Any]:
 
 
 def resume_run(
-    out: str | os.PathLike[str], *, progress: bool = True, generations: int | None = None
+    out: str | os.PathLike[str],
+    *,
+    progress: bool = True,
+    generations: int | None = None,
+    tensorboard: str | os.PathLike[str] | None = None,
 ) -> tuple[Path, pd.DataFrame]:
     """Continue an interrupted run in its directory to its target (or ``generations``).
 
     The config, seed and policies come from the run's newest checkpoint (or, before the first
     checkpoint, from ``run.json``), so the result is identical to an uninterrupted run.
+    ``tensorboard=DIR`` monitors it in ``DIR/<name of the run directory>``, as :func:`evolve`.
     """
 
     path = Path(out)
     if generations is not None:
         check_integer("--generations", generations, 1, MAX_GENERATIONS)
+    board = check_tensorboard(tensorboard) if tensorboard is not None else None
     if not path.exists():
         raise ValueError(f"{path}: no such run directory")
     if not path.is_dir():
@@ -377,6 +389,7 @@ def resume_run(
         resume=True,
         max_steps=max_steps,
         progress=progress,
+        tensorboard=None if board is None else board / path.resolve().name,
     )
     plot_run_dir(path)
     return path, table

@@ -17,8 +17,9 @@ Backends:
   killed worker breaks a ``ProcessPoolExecutor``; the pool is rebuilt and the unfinished runs
   resumed.
 - ``ray``: the runs go to an existing cluster (``ray_address="auto"`` or ``"host:port"``) or to
-  a fresh Ray instance here (``"local"``), as many at a time as the cluster has CPUs (at most
-  ``workers`` where given), in :attr:`SweepSpec.runs` order.
+  a fresh Ray instance here (``"local"``, listening on loopback only: :func:`init_local_ray`),
+  as many at a time as the cluster has CPUs (at most ``workers`` where given), in
+  :attr:`SweepSpec.runs` order.
 
 On a cluster the worker nodes usually do not share the driver's filesystem, so the Ray backend
 never lets a task write to ``out``: the driver's disk holds every run's state. A run advances
@@ -40,6 +41,12 @@ generation bounds what a lost node costs, and rebuilding a runner from its check
 small fraction of a generation. Runs under way continue before new ones start, so a sweep
 stopped part-way has whole seeds done. Worker nodes need the package installed (the same
 version: checkpoints record it), not the driver's directories.
+
+Monitoring: with ``tensorboard=DIR`` every run writes each generation to TensorBoard as it
+closes (:mod:`evolution.lab.monitor`), in ``DIR/<method>-seed<NNN>`` (``DIR/<cell>/...`` in a
+grid), so that ``tensorboard --logdir DIR`` overlays the runs. Local workers write their run's
+event files themselves; on Ray the tasks return each closed generation's record with their
+files and the driver writes them, so the worker nodes need neither the package nor ``DIR``.
 
 Progress: an aggregate bar over all runs' generations, with ETA and the latest mean batteries
 and matings, read from the runs' ``statistics.csv`` files as they are rewritten (a line a minute
@@ -83,6 +90,12 @@ from evolution.lab.api import (
     write_tables,
 )
 from evolution.lab.grid import Cell, Grid, cells, check_grid, write_grid
+from evolution.lab.monitor import (
+    GenerationMonitor,
+    GenerationRecord,
+    TensorBoardWriter,
+    check_tensorboard,
+)
 from evolution.runner import EvolutionRunner, default_policies, latest_checkpoint
 from evolution.runner.checkpoints import prune_checkpoints
 from evolution.runner.settings import merge
@@ -111,6 +124,8 @@ LEARNING_STEP_COST = 1.2
 STEPS_PER_LIFE = {"ee": 1.2, "ce": 0.95}
 #: Newest checkpoints each run directory keeps (:func:`evolution.lab.api.run`'s default).
 KEEP_CHECKPOINTS = 3
+#: The address a Ray instance started here (``--ray local``) listens on.
+LOOPBACK = "127.0.0.1"
 #: Generations one Ray task advances its run by: a lost node costs at most this much of each
 #: run it held, and every chunk pays one checkpoint's transfer and one runner rebuild.
 CHUNK_GENERATIONS = 1
@@ -243,14 +258,19 @@ def run_one(
     policies: str = "trained",
     keep_checkpoints: int = KEEP_CHECKPOINTS,
     max_steps: int | None = None,
+    tensorboard: str | None = None,
 ) -> pd.DataFrame:
-    """Run (or resume) one sweep member in its run directory; the local worker entry point."""
+    """Run (or resume) one sweep member in its run directory; the local worker entry point.
+
+    ``tensorboard``: the member's TensorBoard run directory (None: no monitoring).
+    """
     from behaviours import BehaviourPolicies
 
     chosen = BehaviourPolicies.reactive() if policies == "reactive" else None
     return run(
         method, generations, seed, out_dir=out, resume=True, policies=chosen,
-        keep_checkpoints=keep_checkpoints, max_steps=max_steps, **overrides,
+        keep_checkpoints=keep_checkpoints, max_steps=max_steps, tensorboard=tensorboard,
+        **overrides,
     )  # fmt: skip
 
 
@@ -265,6 +285,8 @@ class RunChunk(NamedTuple):
         checkpoint: ``(file name, bytes)`` of the newest checkpoint the driver holds; None
             starts the run.
         max_steps: the run's step budget (None: none).
+        monitor: return each closed generation's :class:`GenerationRecord` (for the driver's
+            TensorBoard writer).
     """
 
     method: str
@@ -276,6 +298,7 @@ class RunChunk(NamedTuple):
     keep_checkpoints: int
     checkpoint: tuple[str, bytes] | None
     max_steps: int | None = None
+    monitor: bool = False
 
 
 class ChunkResult(NamedTuple):
@@ -287,12 +310,15 @@ class ChunkResult(NamedTuple):
             -> content, for every file the chunk wrote.
         table: the run's statistics so far (:meth:`EvolutionRunner.statistics`).
         finished: the run reached its target generations or spent its step budget.
+        generations: with ``RunChunk.monitor``, the record of each generation the chunk
+            closed, in order.
     """
 
     completed: int
     files: dict[str, bytes]
     table: pd.DataFrame
     finished: bool = False
+    generations: tuple[GenerationRecord, ...] = ()
 
 
 def advance_run(task: RunChunk) -> ChunkResult:
@@ -329,14 +355,19 @@ def advance_run(task: RunChunk) -> ChunkResult:
                 )
             except CheckpointError as err:  # name the file as the run directory has it
                 raise CheckpointError(str(err).replace(f"{out}{os.sep}", "")) from None
+        records: list[GenerationRecord] = []
         with runner:
             target = min(runner.completed_generations + task.chunk, task.generations)
+            monitor = None
+            if task.monitor:
+                monitor = GenerationMonitor(records.append, runner.completed_generations)
             table = runner.run(
                 target,
                 checkpoint_dir=checkpoints,
                 checkpoint_every=1,
                 keep_checkpoints=task.keep_checkpoints,
                 max_steps=task.max_steps,
+                on_generation=monitor,
             )
             write_tables(out, table, robot_table(runner), learning_table(runner))
             completed = runner.completed_generations
@@ -352,7 +383,7 @@ def advance_run(task: RunChunk) -> ChunkResult:
             for path in sorted(out.rglob("*"))
             if path.is_file() and path != given
         }
-    return ChunkResult(completed, files, table, finished)
+    return ChunkResult(completed, files, table, finished, tuple(records))
 
 
 def check_ray_address(address: str, timeout: float = 3.0) -> None:
@@ -509,6 +540,7 @@ def sweep(
     poll_seconds: float = 2.0,
     keep_checkpoints: int = KEEP_CHECKPOINTS,
     chunk_generations: int = CHUNK_GENERATIONS,
+    tensorboard: str | os.PathLike[str] | None = None,
 ) -> dict[SweepRun, pd.DataFrame]:
     """Run every (method, seed, cell) of ``spec``; return their statistics tables.
 
@@ -525,9 +557,12 @@ def sweep(
         poll_seconds: how often progress is refreshed.
         keep_checkpoints: newest checkpoints each run directory keeps (0: all of them).
         chunk_generations: with ``executor="ray"``: generations one task advances a run by.
+        tensorboard: write every run's generations to TensorBoard as they close, each run
+            in ``<tensorboard>/<cell>/<method>-seed<NNN>`` (:mod:`evolution.lab.monitor`).
 
     Raises:
-        ValueError: bad arguments or an unreachable Ray address (before any run starts).
+        ValueError: bad arguments, an unreachable Ray address, or a ``tensorboard``
+            directory that cannot be written or without the package (before any run starts).
         SweepFailed: a run still failed after ``max_retries`` retries (the others finish
             first; their results stay on disk).
     """
@@ -545,6 +580,7 @@ def sweep(
     spec.check()  # every cell's settings, before anything runs
     if executor == "ray":
         check_ray_address(ray_address)
+    board = check_tensorboard(tensorboard, "tensorboard") if tensorboard is not None else None
     out = Path(out_dir)
     check_grid(out, spec.grid)
     out.mkdir(parents=True, exist_ok=True)
@@ -555,9 +591,9 @@ def sweep(
         if executor == "local":
             return _sweep_local(
                 spec, out, workers or os.cpu_count() or 1, max_retries, keep_checkpoints, bar,
-                poll_seconds,
+                poll_seconds, board,
             )  # fmt: skip
-        plan = _RayPlan(spec, out, keep_checkpoints, chunk_generations)
+        plan = _RayPlan(spec, out, keep_checkpoints, chunk_generations, board)
         return _sweep_ray(plan, workers, ray_address, max_retries, bar, poll_seconds)
     finally:
         bar.close()
@@ -571,6 +607,7 @@ def _sweep_local(
     keep_checkpoints: int,
     bar: _Progress,
     poll_seconds: float,
+    board: Path | None = None,
 ) -> dict[SweepRun, pd.DataFrame]:
     results: dict[SweepRun, pd.DataFrame] = {}
     failures: dict[SweepRun, int] = {}
@@ -593,6 +630,7 @@ def _sweep_local(
                     spec.policies,
                     keep_checkpoints,
                     spec.max_steps,
+                    None if board is None else str(run_dir(board, *member)),
                 ): member
                 for member in todo
             }
@@ -631,6 +669,8 @@ class _RayPlan(NamedTuple):
     out: Path
     keep_checkpoints: int
     chunk_generations: int
+    #: The sweep's TensorBoard directory (None: no monitoring).
+    tensorboard: Path | None = None
 
     def next_chunk(self, member: SweepRun) -> RunChunk:
         """The task that advances ``member`` from the newest checkpoint in its run directory."""
@@ -646,6 +686,7 @@ class _RayPlan(NamedTuple):
             self.keep_checkpoints,
             None if newest is None else (newest.name, newest.read_bytes()),
             self.spec.max_steps,
+            self.tensorboard is not None,
         )
 
     def store(self, member: SweepRun, result: ChunkResult) -> None:
@@ -688,12 +729,11 @@ def _sweep_ray(
             "log_to_driver": False,
             "runtime_env": {"env_vars": dict(WORKER_ENV)},
         }
-        if address == "local":
-            kwargs["num_cpus"] = workers or os.cpu_count() or 1
-        else:
-            kwargs["address"] = address
         try:
-            ray.init(**kwargs)
+            if address == "local":
+                init_local_ray(ray, num_cpus=workers or os.cpu_count() or 1, **kwargs)
+            else:
+                ray.init(address=address, **kwargs)
         except (ConnectionError, RuntimeError) as err:
             hint = ""
             if address != "local" and "RAY_AUTH_MODE" not in os.environ:
@@ -705,6 +745,7 @@ def _sweep_ray(
             raise ValueError(
                 f"cannot connect to the Ray cluster at {address}: {err}{hint}"
             ) from None
+    writers: dict[SweepRun, TensorBoardWriter] = {}  # with plan.tensorboard, one per run
     try:
         # Retries are the driver's, from the checkpoint it holds: Ray's own would resend a
         # chunk's arguments, but count per chunk rather than per run.
@@ -718,6 +759,11 @@ def _sweep_ray(
 
         def submit(member: SweepRun, error: BaseException | None = None) -> None:
             task = plan.next_chunk(member)
+            if plan.tensorboard is not None and member not in writers:
+                # From the generation the run stands at: steps an interrupted sweep wrote
+                # past the run's checkpoint are replaced (evolution.lab.monitor).
+                start = 0 if task.checkpoint is None else _generation_of(task.checkpoint[0])
+                writers[member] = TensorBoardWriter(run_dir(plan.tensorboard, *member), start)
             if error is not None:
                 held = 0 if task.checkpoint is None else _generation_of(task.checkpoint[0])
                 cell = f" in {member.cell}" if member.cell else ""
@@ -746,6 +792,8 @@ def _sweep_ray(
                 try:
                     result: ChunkResult = ray.get(ref)
                     plan.store(member, result)
+                    for record in result.generations:
+                        writers[member].write(record)
                 except Exception as err:  # a lost node or worker, an error in the run
                     failures[member] = failures.get(member, 0) + 1
                     if failures[member] > max_retries:
@@ -763,8 +811,44 @@ def _sweep_ray(
         _raise_failures(errors)
         return {key: results[key] for key in spec.runs}
     finally:
+        for writer in writers.values():
+            writer.close()
         if started_here:
             ray.shutdown()
+
+
+def init_local_ray(ray: Any, **kwargs: Any) -> None:
+    """Start a Ray instance on this machine (``--ray local``) whose every process listens on
+    loopback only: no port of it is reachable from the network.
+
+    ``ray.init(_node_ip_address="127.0.0.1")`` alone does not do it: while Ray allows
+    multi-node clusters (on Linux, always) it replaces a loopback node address by this machine's
+    network address, and its servers then listen on every interface. The switch it reads for
+    that (``ray_constants.ENABLE_RAY_CLUSTER``, which ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``
+    turns off for a whole process) is turned off only while this one-node instance starts,
+    then restored, so the process can still drive a real cluster later. The switch is not
+    public API: where a Ray version lacks it, Ray starts as it would without it, and
+    ``tests/test_ray_cluster.py`` (which lists the instance's listening sockets) fails.
+
+    Args:
+        ray: the ``ray`` module.
+        **kwargs: ``ray.init``'s other arguments.
+    """
+    constants: Any = None
+    try:
+        from ray._private import ray_constants
+
+        constants = ray_constants
+    except ImportError:
+        pass
+    saved = getattr(constants, "ENABLE_RAY_CLUSTER", None)
+    if saved is not None:
+        constants.ENABLE_RAY_CLUSTER = False
+    try:
+        ray.init(_node_ip_address=LOOPBACK, **kwargs)
+    finally:
+        if saved is not None:
+            constants.ENABLE_RAY_CLUSTER = saved
 
 
 def _generation_of(checkpoint: str) -> int:

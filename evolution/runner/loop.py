@@ -53,8 +53,11 @@ def run_generations(
             are not complete (an EE slot whose agents keep dying never completes a
             generation); None: no limit.
         progress: show a tqdm progress bar over generations.
-        on_generation: optional callable ``f(runner)`` after each completed generation
-            (after its checkpoint).
+        on_generation: optional callable ``f(runner)`` after each control step that
+            completed one or more generations (after their checkpoint): the seam through
+            which run directories' tables and live monitors (:mod:`evolution.lab.monitor`)
+            follow a run. It runs between steps, never inside one, and must not change the
+            runner.
 
     Returns:
         ``runner.statistics()`` of the completed generations.
