@@ -23,7 +23,7 @@ then Forage, then Search), which only matters for hand-made weights. The LED is 
 activation(Mate) > activation(Forage), compared on the raw activations whether or not the
 behaviours are available: the paper ties the LED to the two output nodes, not to the choice, so a
 robot can signal willingness to mate before it sees a partner. The ``mlp`` controller keeps these
-output rules and the recharge part (:mod:`evolution.mlp_kernels`).
+output rules and the recharge part (:mod:`evolution.controller_kernels`).
 
 The controller reads a (n_robots, genes) weight matrix (one row per robot's active agent), the
 robots' state and the perceived inputs, and writes into buffers it owns, so the hot loop
@@ -85,7 +85,7 @@ class NeuralController:
             ``activations`` (n, 3), ``behaviour`` (n,), ``led`` (n,), ``continue_recharge``
             (n,), written by every :meth:`decide`.
         rules: the :class:`~evolution.kernels.ControllerRules`.
-        controller: the resolved controller.
+        layout: the resolved controller (its spec, genome blocks and inputs).
         kernels: its :class:`~evolution.kernels.StepKernels` (the runner's fused calls too).
     """
 
@@ -103,7 +103,7 @@ class NeuralController:
         n = check_integer("n_robots", weights.shape[0], 1)
         if weights.shape != (n, layout.length) or weights.dtype != np.float64:
             raise ValueError(f"weights must be float64 of shape ({n}, {layout.length})")
-        self.controller = layout
+        self.layout = layout
         self.rules = layout.rules(
             check_number("max_energy", max_energy, 0.0, low_open=True),
             float(check_integer("max_recharge_steps", max_recharge_steps, 1)),

@@ -28,15 +28,16 @@ Built in:
   3 x inputs selection weights, 39 genes (:func:`evolution.kernels.decide_paper`);
 - ``mlp``: one tanh hidden layer of ``evolution.hidden_units`` units between the same inputs
   and the same three outputs, with the paper's 3-weight recharge part
-  (:mod:`evolution.mlp_kernels`). The recharge decision stays the paper's linear rule: it reads
-  two quantities the selection inputs lack (the steps recharged), runs only while docked when
-  the selection part is idle, and a line in (energy, steps) is all a keep-or-stop threshold
+  (:mod:`evolution.controller_kernels`). The recharge decision stays the paper's linear rule: it
+  reads a quantity the selection inputs lack (the steps recharged), runs only while docked
+  when the selection part is idle, and a line in (energy, steps) is all a keep-or-stop threshold
   needs; so the two controllers differ only in the selection part, whose capacity is what the
   comparison is about, and the genome's first three genes mean the same in both.
 
-**Adding a controller** is one entry here (its blocks, its two kernels, written beside the
-others in a ``*kernels.py`` module) and its test; a program can also add one at run time with
-:func:`register_controller` (a test does, to prove the seam). ``docs/design.md`` §3 and §9.28.
+**Adding a controller** is one entry here (its blocks and its two kernels, written beside the
+mlp's in :mod:`evolution.controller_kernels`) and its test; a program can also add one at run
+time with :func:`register_controller` (a test does, to prove the seam). ``docs/design.md`` §3
+and §9.28.
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ import numpy as np
 
 from behaviours.kernels import InputBuffers
 from cyber_rodent.vision.types import BATTERY, FACE, LED
+from evolution.controller_kernels import decide_mlp, decide_mlp_reference
 from evolution.input_kernels import (
     N_PAPER_INPUTS,
     PAPER_INPUTS,
@@ -79,7 +81,6 @@ from evolution.kernels import (
     decide_paper,
     decide_paper_reference,
 )
-from evolution.mlp_kernels import decide_mlp, decide_mlp_reference
 
 if TYPE_CHECKING:
     from evolution.config import EvolutionConfig

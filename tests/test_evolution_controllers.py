@@ -21,6 +21,7 @@ from cyber_rodent.vision.types import BATTERY, FACE, LED
 from evolution.checkpoint import CheckpointError
 from evolution.config import GENOME_LENGTH, EvolutionConfig, GeneticConfig
 from evolution.controller import NeuralController
+from evolution.controller_kernels import decide_mlp, decide_mlp_reference
 from evolution.controllers import (
     CONTROLLERS,
     MLP,
@@ -52,7 +53,6 @@ from evolution.kernels import (
     recharge_decision,
     recharge_decision_reference,
 )
-from evolution.mlp_kernels import decide_mlp, decide_mlp_reference
 from evolution.runner import EvolutionRunner, RunConfig
 from evolution.runner.settings import parse_set, settings, to_toml
 
@@ -287,7 +287,7 @@ def test_one_generation_with_the_mlp_controller(mlp_run) -> None:
     with EvolutionRunner.from_checkpoint(checkpoint, BehaviourPolicies.load_default()) as runner:
         assert runner.config.evolution.controller == "mlp"
         assert runner.scheduler.active_weights.shape == (4, 3 + 8 * 12 + 3 * 9)
-        assert runner.controller.controller.spec is MLP
+        assert runner.controller.layout.spec is MLP
     # a resume with another controller is refused, naming the setting
     config = runner.config.replace(evolution=dataclasses.replace(runner.config.evolution,
                                                                  controller="paper"))  # fmt: skip

@@ -1,7 +1,9 @@
-"""The ``mlp`` controller's rule: one tanh hidden layer between the inputs and the three outputs.
+"""The rules of the controllers beside the paper's (whose rule lives with the fused step in
+:mod:`evolution.kernels`): each a compiled kernel and its numpy reference, registered in
+:mod:`evolution.controllers`. A new controller's rule goes here.
 
-Genome blocks (:data:`evolution.controllers.MLP`, in this order, the block starts in
-``rules.layout``):
+**mlp**: one tanh hidden layer between the inputs and the three outputs. Genome blocks
+(:data:`evolution.controllers.MLP`, in this order, the block starts in ``rules.layout``):
 
 - ``recharge`` (3): the paper's recharge part, unchanged (:func:`evolution.kernels.
   recharge_decision`): ``w0 energy / max_energy + w1 steps / max_recharge_steps + w2 <= 0``
@@ -18,6 +20,10 @@ activation(Forage).
 The compiled kernel adds each sum's terms in index order; the reference uses ``matmul``, which
 may round the last bit differently, so the two agree to rounding, like the paper's controller
 (``tests/test_evolution_controllers.py``).
+
+Every rule has the signature ``decide(rules, robots, perceived, out)``
+(:class:`evolution.controllers.ControllerSpec`) and may use the paper's output rules
+(:func:`evolution.kernels.choose`, :func:`evolution.kernels.recharge_decision`).
 """
 
 from __future__ import annotations
