@@ -116,6 +116,22 @@ def jit_inline(function: F) -> F:
     return cast(F, numba.njit(cache=True, nogil=True, inline="always")(function))
 
 
+def jit_built(function: F, *, inline: bool = False) -> F:
+    """Compile a kernel that a factory builds at run time (a closure over other kernels).
+
+    Compiled in this process, never cached on disk: numba keys a closure's cache entry by its
+    captured values, and a captured compiled function pickles differently in every process,
+    so the entry would never be found again. With ``inline`` it is inlined into every kernel
+    that calls it, as :func:`jit_inline`. Without numba the function is returned unchanged.
+    """
+    if numba is None:  # pragma: no cover
+        return function
+    options: dict[str, Any] = {"nogil": True}
+    if inline:
+        options["inline"] = "always"
+    return cast(F, numba.njit(**options)(function))
+
+
 def pick(backend: Backend, compiled: F, reference: F) -> F:
     """The compiled kernel for ``"numba"``, the numpy reference for ``"numpy"``."""
     return compiled if backend == "numba" else reference
@@ -145,6 +161,7 @@ __all__ = [
     "check_backend",
     "compiled_cache_dir",
     "jit",
+    "jit_built",
     "jit_inline",
     "kernel_sources",
     "pick",

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar, cast
 
@@ -137,15 +137,26 @@ class BooleanRule:
 
 @dataclass(frozen=True)
 class ChoiceRule:
-    """One of a fixed set of values."""
+    """One of a fixed set of values, or of a registry's names at the time of the check.
+
+    Attributes:
+        choices: the values (for a registry: its names when the field was declared).
+        registry: None, or a function returning the values allowed now (a registry that
+            grows as entries are registered); then it, not ``choices``, decides.
+    """
 
     choices: tuple[object, ...]
+    registry: Callable[[], Sequence[object]] | None = None
+
+    def allowed(self) -> Sequence[object]:
+        """The values allowed now."""
+        return self.choices if self.registry is None else self.registry()
 
     def check(self, name: str, value: object) -> None:
-        check_choice(name, value, self.choices)
+        check_choice(name, value, self.allowed())
 
     def describe(self) -> str:
-        return "one of " + ", ".join(map(str, self.choices))
+        return "one of " + ", ".join(map(str, self.allowed()))
 
 
 Rule = IntegerRule | NumberRule | BooleanRule | ChoiceRule
@@ -188,9 +199,18 @@ def boolean(default: bool, *, source: str = "") -> bool:
     return dataclasses.field(default=default, metadata=_metadata(BooleanRule(), "", source))
 
 
-def choice(default: T, choices: Sequence[T], *, source: str = "") -> T:
-    """A dataclass field holding one of ``choices`` (see :func:`validate_fields`)."""
-    rule = ChoiceRule(tuple(choices))
+def choice(
+    default: T, choices: Sequence[T] | Callable[[], Sequence[T]], *, source: str = ""
+) -> T:
+    """A dataclass field holding one of ``choices`` (see :func:`validate_fields`).
+
+    ``choices`` is a sequence of values, or a function returning the values allowed at the
+    time of each check: the names of a registry that may grow after the field is declared.
+    """
+    if callable(choices):
+        rule = ChoiceRule(tuple(choices()), registry=choices)
+    else:
+        rule = ChoiceRule(tuple(choices))
     return dataclasses.field(default=default, metadata=_metadata(rule, "", source))
 
 

@@ -1,11 +1,12 @@
 """Embodied evolution of the Cyber Rodent survival task, and the centralised GA baseline.
 
-The world-independent core: the genome (:class:`Genome`), the 39-weight controller
-(:class:`NeuralController`), virtual agents (:class:`VirtualAgent`), the reproduction rules
-(:mod:`evolution.reproduction`), the time-sharing schedulers (:class:`EmbodiedEvolution`,
-:class:`CentralisedEvolution`), the per-generation statistics (:mod:`evolution.stats`) and
-atomic checkpoints (:mod:`evolution.checkpoint`). Every number of the paper is a field of
-:class:`EvolutionConfig`.
+The world-independent core: the genome (:class:`Genome`), the controllers (the paper's
+39-weight one by default; :mod:`evolution.controllers`, their inputs
+:mod:`evolution.input_kernels`) evaluated for every robot by :class:`NeuralController`, virtual
+agents (:class:`VirtualAgent`), the reproduction rules (:mod:`evolution.reproduction`), the
+time-sharing schedulers (:class:`EmbodiedEvolution`, :class:`CentralisedEvolution`), the
+per-generation statistics (:mod:`evolution.stats`) and atomic checkpoints
+(:mod:`evolution.checkpoint`). Every number of the paper is a field of :class:`EvolutionConfig`.
 
 The physics side (:mod:`evolution.runner`) is imported on first use, so the core stays
 importable without MuJoCo. The experiment tooling (one run in one call, sweeps, figures,

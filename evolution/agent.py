@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from evolution.config import GENOME_LENGTH
-from evolution.genome import Genome
+from evolution.genome import Genome, GenomeLayout
 
 
 def fitness(batteries: int | float, age: int | float, time_unit: float = 100.0) -> float:
@@ -61,22 +61,24 @@ class GenomePool:
             self._genomes.append(genome)  # keeps the object, and so its id, alive
         return found
 
-    def array(self) -> np.ndarray:
-        """(G, L) the genes of every genome seen, by index (L = 39, or 49 in learning mode)."""
+    def array(self, length: int = GENOME_LENGTH) -> np.ndarray:
+        """(G, L) the genes of every genome seen, by index (L their length, ``length`` if
+        there are none: 39 for the paper's controller, 49 in learning mode)."""
         if not self._genomes:
-            return np.zeros((0, GENOME_LENGTH))
+            return np.zeros((0, length))
         return np.stack([genome.weights for genome in self._genomes])
 
 
-def genomes_from_array(weights: np.ndarray) -> list[Genome]:
-    """The genomes of a :meth:`GenomePool.array` (one object per row).
+def genomes_from_array(weights: np.ndarray, layout: GenomeLayout | None = None) -> list[Genome]:
+    """The genomes of a :meth:`GenomePool.array` (one object per row), of ``layout`` (default:
+    the paper's controller's, with the learning genes if there are 49 columns).
 
     Raises:
-        ValueError: not a (G, L) array of finite numbers.
+        ValueError: not a (G, L) array of finite numbers of the layout's length.
     """
     if not isinstance(weights, np.ndarray) or weights.ndim != 2:
         raise ValueError("genomes must be a (G, L) array")
-    return [Genome(row) for row in weights]
+    return [Genome(row, layout) for row in weights]
 
 
 def genome_at(genomes: Sequence[Genome], index: object) -> Genome:

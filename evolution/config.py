@@ -32,12 +32,17 @@ from cyber_rodent.validation import (
     validate_fields,
 )
 from cyber_rodent.world import MAX_ROBOTS
+from evolution.controllers import controller_names, paper_blocks, resolve
+from evolution.input_kernels import N_INPUTS
 
 #: The two evolution methods: embodied evolution and the centralised GA baseline (paper §4.1).
 METHODS = ("ee", "ce")
 
-#: Number of evolved weights (paper §3.5): 3 for the recharge decision + 12 x 3 for selection.
-GENOME_LENGTH = 39
+#: Genes of the paper's controller (§3.5) over the declared inputs
+#: (:data:`evolution.input_kernels.INPUTS`): 3 for the recharge decision + 3 x 12 for
+#: selection = 39. Another controller's length follows from its blocks
+#: (:attr:`EvolutionConfig.genome_length`).
+GENOME_LENGTH = sum(block.size for block in paper_blocks(N_INPUTS))
 #: Learning mode's genes after the controller weights (docs/design.md §11): four learning
 #: meta-parameters (learning rate, discount, trace decay, exploration ε) and the six weights
 #: of the potential-based shaping reward (two inputs for each of Mate, Forage, Search).
@@ -230,6 +235,11 @@ class EvolutionConfig:
             At 0.9 a row closes once 90 % of the slots have moved past it; agents of a closed
             generation that finish later (in lagging slots) are counted in
             ``StatisticsRecorder.late`` instead of a row.
+        controller: the evolved controller (docs/design.md §9.28): ``"paper"``, the paper's
+            one-layer controller (39 weights), or ``"mlp"``, one tanh hidden layer of
+            ``hidden_units`` units with the paper's recharge part; or a controller a program
+            registered (:func:`evolution.controllers.register_controller`).
+        hidden_units: ``mlp`` only: the units of its hidden layer.
         genetics: the genome and its operators (Table 2).
         learning: learning mode (off by default; docs/design.md §11).
         reproduction: reproduction variants (the paper's rule by default).
@@ -263,6 +273,8 @@ class EvolutionConfig:
     ee_close_quorum: float = number(
         0.9, 0.0, 1.0, low_open=True, unit="share of slots", source="docs/design.md §9.17"
     )
+    controller: str = choice("paper", controller_names, source="paper §3.5")
+    hidden_units: int = integer(8, 1, 64, unit="units", source="docs/design.md §9.28")
     genetics: GeneticConfig = field(default_factory=GeneticConfig)
     learning: LearningConfig = field(default_factory=LearningConfig)
     reproduction: ReproductionConfig = field(default_factory=ReproductionConfig)
@@ -291,8 +303,10 @@ class EvolutionConfig:
 
     @property
     def genome_length(self) -> int:
-        """Genes of one genome: the controller's 39, plus the learning genes in learning mode."""
-        return LEARNING_GENOME_LENGTH if self.learning.enabled else GENOME_LENGTH
+        """Genes of one genome: the controller's (39 for the paper's), plus the learning genes
+        in learning mode."""
+        learning = N_LEARNING_GENES if self.learning.enabled else 0
+        return resolve(self).length + learning
 
     @property
     def subpopulation_size(self) -> int:

@@ -1,14 +1,20 @@
 """The evolution's per-step rules: each as a compiled kernel and its numpy reference.
 
-* :func:`decide` / :func:`decide_reference`: every robot's evolved controller (paper §3.5,
-  ``docs/design.md`` §5): the 12 inputs, the selection part's three activations, the available
-  behaviour with the largest one, the LED rule and the recharge decision;
+* :func:`decide` / :func:`decide_reference`: every robot's evolved controller of the paper
+  (§3.5, ``docs/design.md`` §5): its inputs (:func:`evolution.input_kernels.fill_inputs`), then
+  :func:`decide_paper`: the selection part's three activations, the available behaviour with
+  the largest one and the LED rule (:func:`choose`), and the recharge decision
+  (:func:`recharge_decision`); :func:`choose` and :func:`recharge_decision` are shared by every
+  controller that keeps the paper's output rules (:mod:`evolution.controllers`);
 * :func:`steer` / :func:`steer_reference`: the chosen commands to wheel speeds, the LED (dark
   while a robot keeps recharging) and the Mate signal;
 * :func:`sense_decide_act` / :func:`sense_decide_act_reference`: the first half of every
   control step in one call: the geometric vision's nearest targets
   (:mod:`cyber_rodent.vision.kernels`), the input mapping and the greedy behaviours
   (:mod:`behaviours.kernels`), :func:`decide` and :func:`steer`, in that order;
+* :func:`build_step_kernels`: the same fused call (and learning mode's) for any controller and
+  input table, built in-process around that controller's kernel (:class:`StepKernels`;
+  :data:`PAPER_STEP` holds the module's own, compiled once per installation);
 * :func:`tick` / :func:`tick_reference`: the time-sharing scheduler's per-step bookkeeping
   (ageing, time slices, energy, captures) and whether anything may end a slot this step.
 
@@ -21,6 +27,7 @@ reproducible on its own).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -29,6 +36,7 @@ import numpy.typing as npt
 from behaviours.inputs import FORAGE, MATE, SEARCH
 from behaviours.kernels import (
     OK,
+    BehaviourInputs,
     GreedyTables,
     InputBuffers,
     InputRules,
@@ -43,60 +51,50 @@ from behaviours.kernels import (
     map_inputs,
     map_inputs_reference,
 )
-from cyber_rodent.backend import jit, jit_inline
+from cyber_rodent.backend import jit, jit_built, jit_inline
 from cyber_rodent.vision.kernels import (
     GeometricScene,
     NearestTargets,
     nearest,
     nearest_reference,
 )
-from evolution.genome import RECHARGE, SELECTION
+from evolution.input_kernels import (
+    IN_BATTERY_DISTANCE,
+    IN_BIAS,
+    IN_ENERGY,
+    IN_FACE_DISTANCE,
+    IN_LED_DISTANCE,
+    IN_LED_PREVIOUS,
+    IN_PROXIMITY_START,
+    N_PAPER_INPUTS,
+    N_PROXIMITY,
+    ControllerRules,
+    RobotState,
+    fill_inputs,
+    fill_inputs_reference,
+)
 
 Floats = npt.NDArray[np.float64]
 Ints = npt.NDArray[np.int64]
 Bools = npt.NDArray[np.bool_]
 
-#: Genome layout (:mod:`evolution.genome`): the recharge part's three weights, then the
-#: selection part's 12 x 3 (output-major: the 12 weights into Mate, then Forage, then Search).
-RECHARGE_START: int = RECHARGE.start
-SELECTION_START: int = SELECTION.start
-#: Input indices of the selection part (paper §3.5's enumeration).
-IN_ENERGY = 0
-IN_PROXIMITY_START = 1  #: the six proximities occupy 1..6
-N_PROXIMITY = 6
-IN_FACE_DISTANCE = 7
-IN_LED_DISTANCE = 8
-IN_BATTERY_DISTANCE = 9
-IN_BIAS = 10
-IN_LED_PREVIOUS = 11
-N_INPUTS = 12
+#: The paper's genome layout (:mod:`evolution.genome`): the recharge part's three weights, then
+#: the selection part's 3 x inputs (output-major: the weights into Mate, then Forage, then
+#: Search, each in input order).
+RECHARGE_START = 0
+N_RECHARGE = 3
+SELECTION_START = RECHARGE_START + N_RECHARGE
+#: The paper's inputs (:data:`evolution.input_kernels.INPUTS`; a table may have more).
+N_INPUTS = N_PAPER_INPUTS
 N_OUTPUTS = 3
 assert (MATE, FORAGE, SEARCH) == (0, 1, 2)
-
-
-class ControllerRules(NamedTuple):
-    """The controller's normalisations and the class columns of the distances it reads."""
-
-    max_energy: float  #: energy input = energy / max_energy (paper: 200)
-    max_recharge_steps: float  #: recharge-step input = steps / max_recharge_steps (paper: 40)
-    led: int  #: columns of the perceived normalised distances
-    face: int
-    battery: int
-
-
-class RobotState(NamedTuple):
-    """What the controller reads from the robots themselves (views of the survival world)."""
-
-    energy: Floats  #: (n,) the active agent's energy
-    recharge_steps: Ints  #: (n,) consecutive steps recharged so far
-    led_on: Bools  #: (n,) the LED as lit during the previous step
 
 
 class ControllerBuffers(NamedTuple):
     """The controller's weights (the active agents' genomes) and everything it writes."""
 
-    weights: Floats  #: (n, 39) the active agents' genomes (a view of the scheduler's)
-    inputs: Floats  #: (n, 12) out: the selection part's inputs (bias column 1)
+    weights: Floats  #: (n, genes) the active agents' controller genes (the scheduler's view)
+    inputs: Floats  #: (n, inputs) out: the inputs, one column per row of the input table
     activations: Floats  #: (n, 3) out: Mate, Forage, Search
     behaviour: Ints  #: (n,) out: the chosen behaviour
     led: Bools  #: (n,) out: LED on (activation Mate > activation Forage)
@@ -180,75 +178,105 @@ class ScheduleRules(NamedTuple):
 
 # --- controller --------------------------------------------------------------------------------
 @jit_inline
-def decide(
+def choose(i: int, availability: BehaviourInputs, out: ControllerBuffers) -> None:
+    """Robot ``i``'s behaviour and LED from its three activations: the available behaviour with
+    the largest activation, ties to the lower index; the LED on iff activation(Mate) >
+    activation(Forage), available or not."""
+    a_mate = out.activations[i, MATE]
+    a_forage = out.activations[i, FORAGE]
+    best, best_value = SEARCH, out.activations[i, SEARCH]
+    if availability.forage_available[i] and a_forage >= best_value:
+        best, best_value = FORAGE, a_forage
+    if availability.mate_available[i] and a_mate >= best_value:
+        best = MATE
+    out.behaviour[i] = best
+    out.led[i] = a_mate > a_forage
+
+
+def choose_reference(availability: BehaviourInputs, out: ControllerBuffers) -> None:
+    """:func:`choose` for every robot, in numpy."""
+    masked = out.activations.copy()
+    masked[~availability.mate_available, MATE] = -np.inf
+    masked[~availability.forage_available, FORAGE] = -np.inf
+    out.behaviour[...] = np.argmax(masked, axis=1)
+    np.greater(out.activations[:, MATE], out.activations[:, FORAGE], out=out.led)
+
+
+@jit_inline
+def recharge_decision(
+    i: int, rules: ControllerRules, robots: RobotState, w: Floats, start: int
+) -> bool:
+    """The paper's recharge part for robot ``i`` with the three weights at ``w[start:]``:
+    ``w0 energy / max_energy + w1 steps / max_recharge_steps + w2 <= 0`` continues."""
+    value = robots.energy[i] / rules.max_energy
+    value *= w[start]
+    value += w[start + 1] * (robots.recharge_steps[i] / rules.max_recharge_steps)
+    value += w[start + 2]
+    return bool(value <= 0.0)
+
+
+def recharge_decision_reference(
+    rules: ControllerRules, robots: RobotState, weights: Floats, start: int, out: Bools
+) -> None:
+    """:func:`recharge_decision` for every robot, in numpy, into ``out``."""
+    w = weights[:, start : start + N_RECHARGE]
+    value = robots.energy / rules.max_energy
+    value *= w[:, 0]
+    value += w[:, 1] * (robots.recharge_steps.astype(float) / rules.max_recharge_steps)
+    value += w[:, 2]
+    np.less_equal(value, 0.0, out=out)
+
+
+@jit_inline
+def decide_paper(
     rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
 ) -> None:
-    """Fill the controller's buffers for every robot (see :mod:`evolution.controller`)."""
-    n = out.weights.shape[0]
+    """The paper's one-layer controller on the filled inputs (see :mod:`evolution.controller`)."""
+    n, n_inputs = out.inputs.shape
     availability = perceived.behaviour
     for i in range(n):
         x = out.inputs[i]
-        x[IN_ENERGY] = robots.energy[i] / rules.max_energy
-        for k in range(N_PROXIMITY):
-            x[IN_PROXIMITY_START + k] = perceived.proximity[i, k]
-        x[IN_FACE_DISTANCE] = perceived.norm_distance[i, rules.face]
-        x[IN_LED_DISTANCE] = perceived.norm_distance[i, rules.led]
-        x[IN_BATTERY_DISTANCE] = perceived.norm_distance[i, rules.battery]
-        x[IN_BIAS] = 1.0
-        x[IN_LED_PREVIOUS] = 1.0 if robots.led_on[i] else 0.0
         w = out.weights[i]
         for o in range(N_OUTPUTS):
-            base = SELECTION_START + o * N_INPUTS
+            base = SELECTION_START + o * n_inputs
             total = w[base] * x[0]
-            for k in range(1, N_INPUTS):
+            for k in range(1, n_inputs):
                 total += w[base + k] * x[k]
             out.activations[i, o] = total
-        a_mate = out.activations[i, MATE]
-        a_forage = out.activations[i, FORAGE]
-        # The available behaviour with the largest activation; ties to the lower index.
-        best, best_value = SEARCH, out.activations[i, SEARCH]
-        if availability.forage_available[i] and a_forage >= best_value:
-            best, best_value = FORAGE, a_forage
-        if availability.mate_available[i] and a_mate >= best_value:
-            best = MATE
-        out.behaviour[i] = best
-        out.led[i] = a_mate > a_forage
-        r = RECHARGE_START
-        value = robots.energy[i] / rules.max_energy
-        value *= w[r]
-        value += w[r + 1] * (robots.recharge_steps[i] / rules.max_recharge_steps)
-        value += w[r + 2]
-        out.continue_recharge[i] = value <= 0.0
+        choose(i, availability, out)
+        out.continue_recharge[i] = recharge_decision(i, rules, robots, w, RECHARGE_START)
+
+
+def decide_paper_reference(
+    rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
+) -> None:
+    """:func:`decide_paper` in numpy."""
+    n, n_inputs = out.inputs.shape
+    stop = SELECTION_START + n_inputs * N_OUTPUTS
+    selection = out.weights[:, SELECTION_START:stop].reshape(n, N_OUTPUTS, n_inputs)
+    out.activations[...] = np.matmul(selection, out.inputs[:, :, None])[:, :, 0]
+    choose_reference(perceived.behaviour, out)
+    recharge_decision_reference(
+        rules, robots, out.weights, RECHARGE_START, out.continue_recharge
+    )
+
+
+@jit_inline
+def decide(
+    rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
+) -> None:
+    """Fill the controller's buffers for every robot: the paper's inputs
+    (:func:`~evolution.input_kernels.fill_inputs`), then :func:`decide_paper`."""
+    fill_inputs(rules, robots, perceived, out.inputs)
+    decide_paper(rules, robots, perceived, out)
 
 
 def decide_reference(
     rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
 ) -> None:
     """:func:`decide` in numpy."""
-    n = out.weights.shape[0]
-    x = out.inputs
-    np.divide(robots.energy, rules.max_energy, out=x[:, IN_ENERGY])
-    x[:, IN_PROXIMITY_START : IN_PROXIMITY_START + N_PROXIMITY] = perceived.proximity
-    x[:, IN_FACE_DISTANCE] = perceived.norm_distance[:, rules.face]
-    x[:, IN_LED_DISTANCE] = perceived.norm_distance[:, rules.led]
-    x[:, IN_BATTERY_DISTANCE] = perceived.norm_distance[:, rules.battery]
-    x[:, IN_BIAS] = 1.0
-    x[:, IN_LED_PREVIOUS] = robots.led_on
-    selection = out.weights[:, SELECTION_START : SELECTION_START + N_INPUTS * N_OUTPUTS]
-    out.activations[...] = np.matmul(selection.reshape(n, N_OUTPUTS, N_INPUTS), x[:, :, None])[
-        :, :, 0
-    ]
-    masked = out.activations.copy()
-    masked[~perceived.behaviour.mate_available, MATE] = -np.inf
-    masked[~perceived.behaviour.forage_available, FORAGE] = -np.inf
-    out.behaviour[...] = np.argmax(masked, axis=1)
-    np.greater(out.activations[:, MATE], out.activations[:, FORAGE], out=out.led)
-    w = out.weights[:, RECHARGE_START : RECHARGE_START + 3]
-    value = robots.energy / rules.max_energy
-    value *= w[:, 0]
-    value += w[:, 1] * (robots.recharge_steps.astype(float) / rules.max_recharge_steps)
-    value += w[:, 2]
-    np.less_equal(value, 0.0, out=out.continue_recharge)
+    fill_inputs_reference(rules, robots, perceived, out.inputs)
+    decide_paper_reference(rules, robots, perceived, out)
 
 
 # --- acting ------------------------------------------------------------------------------------
@@ -350,6 +378,124 @@ def sense_decide_learn_reference(
     return status
 
 
+# --- the fused calls of any controller -------------------------------------------------------
+ControllerKernel = Callable[[ControllerRules, RobotState, InputBuffers, ControllerBuffers], None]
+FillKernel = Callable[[ControllerRules, RobotState, InputBuffers, Floats], None]
+
+
+class StepKernels(NamedTuple):
+    """One controller's kernels with one input table, each beside its reference.
+
+    Attributes:
+        controller: fill the inputs, then decide: ``(rules, robots, perceived, out)`` (the
+            step-by-step path's deciding stage).
+        act: the fused sense → decide → act call (signature of :func:`sense_decide_act`).
+        learn: learning mode's fused call (signature of :func:`sense_decide_learn`).
+    """
+
+    controller: ControllerKernel
+    controller_reference: ControllerKernel
+    act: Callable[[GeometricScene, Perceive, Decide, Act], int]
+    act_reference: Callable[[GeometricScene, Perceive, Decide, Act], int]
+    learn: Callable[[GeometricScene, Perceive, Decide, LearnAct], int]
+    learn_reference: Callable[[GeometricScene, Perceive, Decide, LearnAct], int]
+
+
+#: The paper's controller with the paper's inputs: this module's kernels, compiled once per
+#: installation and cached on disk.
+PAPER_STEP = StepKernels(
+    decide, decide_reference, sense_decide_act, sense_decide_act_reference, sense_decide_learn,
+    sense_decide_learn_reference,
+)  # fmt: skip
+
+
+def build_step_kernels(
+    fill: FillKernel,
+    fill_reference: FillKernel,
+    decide_rule: ControllerKernel,
+    decide_rule_reference: ControllerKernel,
+) -> StepKernels:
+    """The fused calls of a controller (``decide_rule``: it reads the filled inputs) with an
+    input table (``fill``), built in this process.
+
+    The bodies are those of :func:`decide`, :func:`sense_decide_act` and
+    :func:`sense_decide_learn` with the given kernels in place of the paper's; they are
+    compiled on first use and not cached on disk (:func:`cyber_rodent.backend.jit_built`).
+    Build them once per controller and table (:func:`evolution.controllers.step_kernels`).
+    """
+
+    def controller_py(
+        rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
+    ) -> None:
+        fill(rules, robots, perceived, out.inputs)
+        decide_rule(rules, robots, perceived, out)
+
+    def controller_reference(
+        rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
+    ) -> None:
+        fill_reference(rules, robots, perceived, out.inputs)
+        decide_rule_reference(rules, robots, perceived, out)
+
+    controller = jit_built(controller_py, inline=True)
+
+    def act_py(scene: GeometricScene, perceive: Perceive, decided: Decide, act: Act) -> int:
+        nearest(scene, perceive.nearest)
+        map_inputs(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
+        controller(decided.rules, decided.robots, perceive.out, decided.out)
+        status = greedy_commands(
+            decided.out.behaviour, perceive.out.behaviour, act.tables, act.out.commands
+        )
+        if status != OK:
+            return status
+        steer(decided.out, act.docked, act.command_speeds, act.out)
+        return status
+
+    def act_reference(scene: GeometricScene, perceive: Perceive, decided: Decide, act: Act) -> int:
+        nearest_reference(scene, perceive.nearest)
+        map_inputs_reference(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
+        controller_reference(decided.rules, decided.robots, perceive.out, decided.out)
+        status = greedy_commands_reference(
+            decided.out.behaviour, perceive.out.behaviour, act.tables, act.out.commands
+        )
+        if status != OK:
+            return status
+        steer_reference(decided.out, act.docked, act.command_speeds, act.out)
+        return status
+
+    def learn_py(scene: GeometricScene, perceive: Perceive, decided: Decide, act: LearnAct) -> int:
+        nearest(scene, perceive.nearest)
+        map_inputs(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
+        controller(decided.rules, decided.robots, perceive.out, decided.out)
+        status = learn_commands(
+            decided.out.behaviour, perceive.out.behaviour, act.tables, act.values, act.episodes,
+            act.step, act.out.commands,
+        )  # fmt: skip
+        if status != OK:
+            return status
+        steer(decided.out, act.docked, act.command_speeds, act.out)
+        return status
+
+    def learn_reference(
+        scene: GeometricScene, perceive: Perceive, decided: Decide, act: LearnAct
+    ) -> int:
+        nearest_reference(scene, perceive.nearest)
+        map_inputs_reference(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
+        controller_reference(decided.rules, decided.robots, perceive.out, decided.out)
+        status = learn_commands_reference(
+            decided.out.behaviour, perceive.out.behaviour, act.tables, act.values, act.episodes,
+            act.step, act.out.commands,
+        )  # fmt: skip
+        if status != OK:
+            return status
+        steer_reference(decided.out, act.docked, act.command_speeds, act.out)
+        return status
+
+    return StepKernels(
+        controller, controller_reference, jit_built(act_py), act_reference, jit_built(learn_py),
+        learn_reference,
+    )  # fmt: skip
+
+
 # --- scheduler ---------------------------------------------------------------------------------
 @jit
 def tick(counters: SlotCounters, outcome: StepOutcome, rules: ScheduleRules) -> bool:
@@ -394,8 +540,20 @@ def tick_reference(counters: SlotCounters, outcome: StepOutcome, rules: Schedule
 
 
 __all__ = [
+    "N_RECHARGE",
+    "PAPER_STEP",
     "Act",
     "ActionBuffers",
+    "ControllerKernel",
+    "FillKernel",
+    "StepKernels",
+    "build_step_kernels",
+    "choose",
+    "choose_reference",
+    "decide_paper",
+    "decide_paper_reference",
+    "recharge_decision",
+    "recharge_decision_reference",
     "LearnAct",
     "sense_decide_learn",
     "sense_decide_learn_reference",

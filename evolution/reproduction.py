@@ -29,7 +29,7 @@ import numpy as np
 
 from evolution.agent import MatingRecord, Origin
 from evolution.config import GeneticConfig
-from evolution.genome import Genome
+from evolution.genome import Genome, GenomeLayout
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,18 +90,20 @@ def draw_replacement(
     rng: np.random.Generator,
     genetics: GeneticConfig | None = None,
     learning: bool = False,
+    *,
+    layout: GenomeLayout | None = None,
 ) -> tuple[Genome, Origin]:
     """A new genome for the slot of an agent that died or never mated.
 
     Removes a uniformly chosen genome from ``spare_list`` (in place) and returns it with
     :attr:`Origin.SPARE`; only if the list is empty makes a random genome (:attr:`Origin.RANDOM`,
-    with the learning genes if ``learning``). Spare genomes were already mutated when they were
-    made, so they are not mutated again.
+    of ``layout``, default the paper's controller's with the learning genes if ``learning``).
+    Spare genomes were already mutated when they were made, so they are not mutated again.
     """
     if spare_list:
         index = int(rng.integers(len(spare_list)))
         return spare_list.pop(index), Origin.SPARE
-    return Genome.random(rng, genetics, learning), Origin.RANDOM
+    return Genome.random(rng, genetics, learning, layout=layout), Origin.RANDOM
 
 
 def tournament(fitness: np.ndarray, rng: np.random.Generator, size: int = 2) -> int:

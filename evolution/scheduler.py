@@ -60,8 +60,8 @@ from evolution.agent import (
 )
 from evolution.agent import fitness as fitness_rule
 from evolution.checkpoint import restore_array
-from evolution.config import GENOME_LENGTH, EvolutionConfig
-from evolution.genome import Genome
+from evolution.config import EvolutionConfig
+from evolution.genome import Genome, GenomeLayout
 from evolution.kernels import ScheduleRules, SlotCounters, StepOutcome, tick, tick_reference
 from evolution.reproduction import draw_replacement, make_offspring, next_generation
 from evolution.stats import StatisticsRecorder
@@ -142,7 +142,9 @@ class TimeSharingScheduler:
             (:func:`evolution.kernels.tick`) runs.
 
     Attributes:
-        active_weights: (n_robots, 39) genome of each robot's active agent (read-only view).
+        active_weights: (n_robots, controller genes) the controller genes of each robot's
+            active agent (read-only view).
+        layout: the genomes' layout (the run's controller, learning mode).
         active_energy: (n_robots,) energy of each robot's active agent; after a switch, the
             energy the runner must load into the world.
         active_slot: (n_robots,) slot index of each robot's active agent.
@@ -173,11 +175,13 @@ class TimeSharingScheduler:
         if not isinstance(rng, np.random.Generator):
             raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng)!r}")
         self.config = config
+        self.layout = GenomeLayout.of(config)
         n, k = config.n_robots, config.subpopulation_size
         self.n_robots, self.subpopulation_size = n, k
         if initial_genomes is None:
-            learns = config.learning.enabled
-            genomes = [Genome.random(rng, config.genetics, learns) for _ in range(n * k)]
+            genomes = [
+                Genome.random(rng, config.genetics, layout=self.layout) for _ in range(n * k)
+            ]
         else:
             genomes = list(initial_genomes)
             if len(genomes) != n * k or not all(isinstance(g, Genome) for g in genomes):
@@ -185,11 +189,12 @@ class TimeSharingScheduler:
                     f"initial_genomes must be {n * k} Genome objects (population_size), "
                     f"got {len(genomes)}"
                 )
-            length = config.genome_length
-            if any(g.weights.shape[0] != length for g in genomes):
+            length = self.layout.length
+            if any(g.layout != self.layout for g in genomes):
                 raise ValueError(
                     f"initial_genomes must have {length} genes each "
-                    f"({'learning mode' if config.learning.enabled else 'the controller'})"
+                    f"({'learning mode' if config.learning.enabled else 'the controller'}: "
+                    f"evolution.controller = {config.controller})"
                 )
         self._rng = rng
         self.slots: list[list[VirtualAgent]] = [
@@ -209,7 +214,7 @@ class TimeSharingScheduler:
         self.active_slot = np.zeros(n, dtype=np.intp)
         self.active = np.ones(n, dtype=bool)
         self.switched = np.ones(n, dtype=bool)
-        self._weights = np.zeros((n, GENOME_LENGTH))
+        self._weights = np.zeros((n, self.layout.controller_genes))
         self.active_energy = np.zeros(n)
         self._age = np.zeros(n, dtype=np.int64)
         self._batteries = np.zeros(n, dtype=np.int64)
@@ -231,7 +236,8 @@ class TimeSharingScheduler:
     # --- views ----------------------------------------------------------------------------
     @property
     def active_weights(self) -> np.ndarray:
-        """(n_robots, 39) live read-only view of the active genomes (fetch once, it updates)."""
+        """(n_robots, controller genes) live read-only view of the active genomes (fetch once,
+        it updates)."""
         view = self._weights.view()
         view.flags.writeable = False
         return view
@@ -473,7 +479,7 @@ class TimeSharingScheduler:
             "arrays": {name: array.copy() for name, array in self._state_arrays().items()},
             **self._method_state(pool),
         }
-        state["genomes"] = pool.array()
+        state["genomes"] = pool.array(self.layout.length)
         return state
 
     def load_state(self, state: dict[str, Any]) -> None:
@@ -486,7 +492,7 @@ class TimeSharingScheduler:
                 generator of another kind, an array of another shape or dtype).
             KeyError: a part of the state is missing.
         """
-        genomes = genomes_from_array(state["genomes"])
+        genomes = genomes_from_array(state["genomes"], self.layout)
         slots = [
             [VirtualAgent.from_state(agent, genomes) for agent in agents]
             for agents in state["slots"]
@@ -580,7 +586,7 @@ class EmbodiedEvolution(TimeSharingScheduler):
     def _on_death(self, robot: int, slot: int) -> None:
         cfg = self.config
         genome, origin = draw_replacement(
-            self.spare_lists[robot], self.robot_rngs[robot], cfg.genetics, cfg.learning.enabled
+            self.spare_lists[robot], self.robot_rngs[robot], cfg.genetics, layout=self.layout
         )
         self._new_agent(robot, slot, genome, origin)
 
@@ -592,7 +598,7 @@ class EmbodiedEvolution(TimeSharingScheduler):
         rng = self.robot_rngs[robot]
         if partner is None:
             genome, origin = draw_replacement(
-                self.spare_lists[robot], rng, cfg.genetics, cfg.learning.enabled
+                self.spare_lists[robot], rng, cfg.genetics, layout=self.layout
             )
         else:
             result = make_offspring(

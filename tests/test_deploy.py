@@ -88,7 +88,7 @@ def test_reference_step_imports_only_numpy_and_torch() -> None:
 def test_bundle_round_trips(recorded) -> None:
     genomes, _, _, bundle = recorded
     spec = json.loads((bundle / BUNDLE_FILE).read_text())
-    assert spec["format"] == 1 and spec["package_version"]
+    assert spec["format"] == 2 and spec["package_version"]
     assert spec["controller"]["input_order"][0] == "energy"
     assert spec["controller"]["input_order"][-1] == "led_previous"
     assert spec["normalisation"]["max_energy"] == 200.0

@@ -17,6 +17,8 @@ state is::
     range_noise         the range-sensor noise generator's state (hardware profile), or None
     learning            LifetimeLearning.state() in learning mode (learned values, traces,
                         open episodes, the exploration stream, the within-life record), or None
+    inputs              the names of the controller's inputs (absent in older checkpoints:
+                        the paper's)
 
 Loading rebuilds a runner from the config, seed and policies, then writes the state into it
 in place (the compiled step's bound buffers stay valid), so it continues bit-identically. The
@@ -50,6 +52,7 @@ from evolution.checkpoint import (
 )
 from evolution.config import LearningConfig, ReproductionConfig
 from evolution.genome import Genome
+from evolution.input_kernels import PAPER_INPUTS, input_table
 from evolution.runner.config import RunConfig, run_config_from_record
 from evolution.runner.settings import settings
 from evolution.runner.world_state import capture_world, restore_world
@@ -107,6 +110,8 @@ def genomes_identity(genomes: Sequence[Genome] | None) -> str | None:
 #: the default that reproduces the behaviour before them): at that default they are left out
 #: of the fingerprint, so older checkpoints still resume.
 LATER_FIELDS: tuple[tuple[Any, ...], ...] = (
+    ("evolution", "controller", "paper"),
+    ("evolution", "hidden_units", 8),
     ("evolution", "genetics", "meta_mutation_width", 0.1),
     ("evolution", "learning", dataclasses.asdict(LearningConfig())),
     ("evolution", "reproduction", dataclasses.asdict(ReproductionConfig())),
@@ -121,8 +126,9 @@ LATER_FIELDS: tuple[tuple[Any, ...], ...] = (
 def run_fingerprint(
     config: RunConfig, seed: int, policies_id: str, genomes_id: str | None = None
 ) -> str:
-    """What a checkpoint must match to be resumed by a run: config, seed, policies and the
-    initial population if one was given."""
+    """What a checkpoint must match to be resumed by a run: config (its controller included),
+    seed, policies, the initial population if one was given, and the controller's inputs if
+    they are not the paper's (:func:`evolution.input_kernels.input_table`)."""
     run = dataclasses.asdict(config)
     if run.get("profile", 0) is None:
         del run["profile"]  # runs without a profile keep the fingerprints they always had
@@ -139,7 +145,28 @@ def run_fingerprint(
     }
     if genomes_id is not None:
         fields["initial_genomes"] = genomes_id
+    inputs = input_names()
+    if inputs != PAPER_INPUT_NAMES:
+        fields["inputs"] = inputs
     return config_fingerprint(fields)
+
+
+#: The paper's inputs' names (a checkpoint without ``inputs`` was written with them).
+PAPER_INPUT_NAMES = [row.name for row in PAPER_INPUTS]
+
+
+def input_names() -> list[str]:
+    """The names of the controller's inputs in use, in order."""
+    return [row.name for row in input_table()]
+
+
+def _inputs_difference(state: dict[str, Any]) -> str:
+    """"" if ``state``'s run read the inputs in use, else the difference in words."""
+    saved = state.get("inputs", PAPER_INPUT_NAMES)
+    here = input_names()
+    if saved == here:
+        return ""
+    return f"controller inputs {saved} there, {here} here"
 
 
 # --- state ----------------------------------------------------------------------------------
@@ -158,6 +185,7 @@ def runner_state(runner: EvolutionRunner) -> dict[str, Any]:
         "world": capture_world(runner.survival, runner.vision),
         "range_noise": None if noise is None else noise.rng.bit_generator.state,
         "learning": None if runner.learning is None else runner.learning.state(),
+        "inputs": input_names(),
     }
 
 
@@ -256,6 +284,12 @@ def load_run(
             f"started with other settings ({differences}); resume it with those"
         ) from None
 
+    inputs = _inputs_difference(state)
+    if inputs:
+        raise CheckpointError(
+            f"{path}: checkpoint was written with other controller inputs ({inputs}); resume "
+            "it with those (evolution.input_kernels)"
+        )
     try:
         config = run_config_from_record(state["config"])
         seed = check_integer("seed", state["seed"], 0)
@@ -285,15 +319,18 @@ def _setting_differences(path: Path, kind: str, config: RunConfig) -> str:
     """The settings in which a checkpoint's run differs from ``config``, in words ("" if it
     cannot be read or none differ: then the seed or the policies do)."""
     try:
-        saved = run_config_from_record(load_checkpoint(path, kind=kind)["config"])
+        state = load_checkpoint(path, kind=kind)
+        saved = run_config_from_record(state["config"])
     except (CheckpointError, ValueError, KeyError, TypeError):
         return ""
     there, here = settings(saved), settings(config)
-    return ", ".join(
+    differences = [
         f"{key} = {there[key].default!r} there, {here[key].default!r} here"
         for key in here
         if key in there and there[key].default != here[key].default
-    )
+    ]
+    inputs = _inputs_difference(state)
+    return ", ".join(differences + ([inputs] if inputs else []))
 
 
 def checkpoint_path(directory: str | os.PathLike[str], generation: int) -> Path:

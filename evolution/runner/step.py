@@ -52,6 +52,7 @@ from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.validation import check_integer
 from cyber_rodent.vision import GeometricVision, make_provider
 from evolution.controller import NeuralController
+from evolution.controllers import resolve
 from evolution.genome import Genome
 from evolution.kernels import (
     Act,
@@ -60,10 +61,6 @@ from evolution.kernels import (
     LearnAct,
     Perceive,
     RobotState,
-    sense_decide_act,
-    sense_decide_act_reference,
-    sense_decide_learn,
-    sense_decide_learn_reference,
     steer,
     steer_reference,
 )
@@ -222,8 +219,11 @@ class EvolutionRunner:
         robots = RobotState(survival.energy, survival.recharge_steps, self.world.led_on)
         self.controller = NeuralController(
             self.scheduler.active_weights, robots, perception.inputs, evo.max_energy,
-            evo.max_recharge_steps, backend=self.backend,
+            evo.max_recharge_steps, backend=self.backend, controller=resolve(evo),
         )  # fmt: skip
+        # The controller's fused calls: the paper's own kernels for the paper's controller and
+        # inputs, else built in this process around its rule (evolution.controllers).
+        kernels = self.controller.kernels
         tables = self.policies.tables
         learning = self.learning
         if learning is not None and perception.fused:
@@ -236,7 +236,7 @@ class EvolutionRunner:
                 tables, learning.values, learning.episodes, learning.step_buffers,
                 survival.docked, COMMAND_SPEEDS, self.action,
             )  # fmt: skip
-            learn_kernel = pick(self.backend, sense_decide_learn, sense_decide_learn_reference)
+            learn_kernel = pick(self.backend, kernels.learn, kernels.learn_reference)
             fused_learning = bind(learn_kernel, self.vision.scene, perceive, decided, learn_act)
 
             def sense_decide_learn_fused() -> None:
@@ -251,7 +251,7 @@ class EvolutionRunner:
             )
             decided = Decide(self.controller.rules, robots, self.controller.buffers)
             act = Act(tables, survival.docked, COMMAND_SPEEDS, self.action)
-            kernel = pick(self.backend, sense_decide_act, sense_decide_act_reference)
+            kernel = pick(self.backend, kernels.act, kernels.act_reference)
             fused = bind(kernel, self.vision.scene, perceive, decided, act)
 
             def sense_decide_act_fused() -> None:

@@ -6,7 +6,8 @@ A bundle is a directory:
   ``torch.export`` (:mod:`behaviours.export`; float64 (batch, 2) inputs in [0, 1] → int64
   wheel command index);
 - ``controller_weights.npy``: (n_agents, 39) float64 genomes of the agents to run (layout:
-  recharge weights ``[0:3]``, selection weights ``[3:39]`` output-major);
+  recharge weights ``[0:3]``, selection weights ``[3:39]`` output-major; with more inputs in the
+  input table, 3 more weights per input);
 - ``bundle.json``: the control period, the robot frame and sign conventions, the sensors'
   geometry and units, every input's normalisation, the controller, the wheel command table, the
   exact torch version and the load call, the survival bookkeeping a robot runs itself (energy,
@@ -21,6 +22,11 @@ A bundle is written into a temporary directory beside its destination and rename
 so a failure never leaves a half-written bundle. :func:`record_decisions` records a simulated
 run's raw observations and decisions, which ``tests/test_deploy.py`` replays through the
 reference step to show that both decide alike.
+
+A bundle holds the paper's controller (``evolution.controller = paper``) over inputs a robot
+computes from its observations (each row of the input table states which); a run of another
+controller, or with an input that states none, is refused with one line saying so
+(:func:`~evolution.lab.deploy.spec.check_deployable`).
 """
 
 from __future__ import annotations
@@ -37,10 +43,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cyber_rodent.atomic import TEMP_MARK, write_text
-from evolution.config import GENOME_LENGTH
 from evolution.genome import Genome
 from evolution.lab.deploy.readme import render_readme
-from evolution.lab.deploy.spec import BUNDLE_FORMAT, bundle_spec
+from evolution.lab.deploy.spec import BUNDLE_FORMAT, bundle_spec, check_deployable
 from evolution.runner.config import RunConfig
 
 if TYPE_CHECKING:
@@ -54,18 +59,18 @@ REFERENCE_FILE = "reference_step.py"
 _REFERENCE_SOURCE = Path(__file__).with_name(REFERENCE_FILE)
 
 
-def _genome_matrix(genomes: Sequence[Genome] | np.ndarray) -> np.ndarray:
+def _genome_matrix(genomes: Sequence[Genome] | np.ndarray, length: int) -> np.ndarray:
 
     if isinstance(genomes, np.ndarray):
         matrix = np.asarray(genomes, dtype=np.float64)
     else:
         genomes = list(genomes)
         if not all(isinstance(g, Genome) for g in genomes):
-            raise ValueError("genomes must be Genome objects or an (n, 39) array")
+            raise ValueError(f"genomes must be Genome objects or an (n, {length}) array")
         matrix = np.stack([g.weights for g in genomes]) if genomes else np.zeros((0, 0))
-    if matrix.ndim != 2 or matrix.shape[0] < 1 or matrix.shape[1] != GENOME_LENGTH:
+    if matrix.ndim != 2 or matrix.shape[0] < 1 or matrix.shape[1] != length:
         raise ValueError(
-            f"genomes must be at least one genome of {GENOME_LENGTH} weights, got shape "
+            f"genomes must be at least one genome of {length} weights, got shape "
             f"{matrix.shape}"
         )
     if not np.isfinite(matrix).all():
@@ -140,7 +145,8 @@ def write_bundle(
 
     Args:
         out: the bundle directory: new, empty, or an earlier bundle (replaced as a whole).
-        genomes: the agents' controller weights, (n, 39) or Genome objects.
+        genomes: the agents' controller weights, (n, 39) or Genome objects (39: the paper's
+            controller over the paper's inputs).
         config: the run's resolved configuration; every number of the bundle comes from it
             (default: the paper's, ``RunConfig()``).
         values: the behaviours' action values by name (the run's own); default: loaded from
@@ -150,18 +156,19 @@ def write_bundle(
         provenance: where the agents came from (run, checkpoint, per-agent records).
 
     Raises:
-        ValueError: bad genomes, config or destination (nothing is written).
+        ValueError: bad genomes, config or destination, or a controller or input a bundle
+            cannot hold (nothing is written).
         FileNotFoundError: the behaviours' values are missing.
     """
     from behaviours.definitions import load_values
     from behaviours.export import export_greedy_policy
     from behaviours.inputs import BEHAVIOUR_NAMES
 
-    matrix = _genome_matrix(genomes)
     if config is None:
         config = RunConfig()
     if not isinstance(config, RunConfig):
         raise ValueError(f"config must be a RunConfig, got {type(config).__name__}")
+    matrix = _genome_matrix(genomes, check_deployable(config).length)
     root = check_bundle_dir(out)
     chosen = {
         name: values[name] if values is not None else load_values(name, values_dir)
@@ -193,7 +200,7 @@ def record_decisions(runner: Any, steps: int) -> dict[str, np.ndarray]:
         ``bearing``/``distance``/``visible`` (3), ``energy``, ``led_previous``, ``docked``,
         ``recharge_steps``, ``weights`` (39; the active agent's genome); decisions
         ``behaviour``, ``led`` (shown), ``led_selection``, ``command``, ``continue_recharge``
-        and ``inputs`` (12).
+        and ``inputs`` (12; one per row of the input table).
     """
     survival, perception, action = runner.survival, runner.perception, runner.action
     keys = ("ranges", "bearing", "distance", "visible", "energy", "led_previous", "docked",

@@ -182,8 +182,8 @@ def render_readme(spec: dict[str, Any]) -> str:
         for name in behaviours["order"]
     ]  # fmt: skip
     files += [
-        [f"`{controller['file']}`", f"({controller['n_agents']}, 39) float64 controller weights, "
-         "one row per agent"],
+        [f"`{controller['file']}`", f"({controller['n_agents']}, "
+         f"{controller['selection_weights'][1]}) float64 controller weights, one row per agent"],
         ["`bundle.json`", "every number and convention of this README, machine-readable"],
         ["`reference_step.py`", "one control step in plain numpy + torch (the decision only)"],
     ]  # fmt: skip
@@ -224,7 +224,7 @@ def render_readme(spec: dict[str, Any]) -> str:
     out += ["## Sensors", "", "### Rangefinders", "", f"{reading[0].upper()}{reading[1:]}.", ""]
     rows = [
         [r["index"], r["name"], r["angle_deg"], _xyz(r["position_m"]), _xyz(r["direction"]),
-         r["range_max_m"], "-" if r["proximity_input"] is None else r["proximity_input"] + 1]
+         r["range_max_m"], "-" if r["controller_input"] is None else r["controller_input"]]
         for r in sensors["rangefinders"]
     ]  # fmt: skip
     out += _table(
@@ -255,7 +255,12 @@ def render_readme(spec: dict[str, Any]) -> str:
     ]
 
     norm = spec["normalisation"]
-    out += ["## Inputs and their normalisation", "", "### Controller (12 inputs, in order)", ""]
+    out += [
+        "## Inputs and their normalisation",
+        "",
+        f"### Controller ({len(controller['inputs'])} inputs, in order)",
+        "",
+    ]
     out += _table(["index", "input", "value"], [
         [i["index"], i["name"], i["value"]] for i in controller["inputs"]
     ])  # fmt: skip

@@ -11,10 +11,12 @@ One step, for one robot (the simulator's ``EvolutionRunner.step`` for each robot
 2. vision: per class (LED, face, battery) the nearest target's bearing (rad, robot frame, left
    positive), distance (m) and whether one is seen; normalised as ``clip((bearing + pi) / 2 pi,
    0, 1)`` (unseen: bearing 0) and ``clip(distance / max_distance, 0, 1)`` (unseen: 1);
-3. controller inputs in ``input_order`` (energy / max_energy, the six proximities, face, LED and
-   battery distances, bias 1, own LED at the previous step); activations ``W (3 x 12) @ x``; the
-   available behaviour (Mate needs a face or LED in view, Forage a battery, Search always) with
-   the largest activation wins, ties to the lower index; LED on iff activation(Mate) >
+3. controller inputs, one per entry of ``bundle.json`` ``controller.inputs`` in order, each
+   computed from the observation it names (``energy``: energy / max_energy; ``proximity``: one
+   of the six proximities; ``distance``: one class's normalised distance; ``constant``: its
+   value; ``led_previous``: own LED at the previous step, 0 or 1); activations ``W (3 x n) @ x``;
+   the available behaviour (Mate needs a face or LED in view, Forage a battery, Search always)
+   with the largest activation wins, ties to the lower index; LED on iff activation(Mate) >
    activation(Forage);
 4. recharge decision (used while docked): ``w0 energy / max_energy + w1 steps / max_recharge_steps
    + w2 <= 0`` means keep recharging; a robot that keeps recharging shows a dark LED;
@@ -46,9 +48,11 @@ import numpy as np
 import torch
 
 #: Bundle format this file reads.
-BUNDLE_FORMAT = 1
+BUNDLE_FORMAT = 2
 MATE, FORAGE, SEARCH = 0, 1, 2
 LED, FACE, BATTERY = 0, 1, 2
+#: What a controller input may be computed from (``bundle.json`` ``controller.inputs``).
+OBSERVATIONS = ("energy", "proximity", "distance", "constant", "led_previous")
 
 
 @dataclass(frozen=True)
@@ -62,7 +66,7 @@ class Decision:
         command: wheel command index.
         wheels: (left, right) wheel rim speeds, m/s.
         continue_recharge: the recharge part's decision (meaningful while docked).
-        inputs: the 12 controller inputs.
+        inputs: the controller inputs (``controller.input_order``).
         behaviour_input: the chosen behaviour's 2 inputs.
     """
 
@@ -103,6 +107,13 @@ class ReferenceController:
         self.proximity_sensors = np.asarray(norm["proximity_sensors"], dtype=np.intp)
         self.range_max = np.asarray(norm["range_max"], dtype=np.float64)
         self.commands = np.asarray(self.spec["commands"]["speeds"], dtype=np.float64)
+        self.inputs = [
+            (row["observation"], row["arg"], row["high"])
+            for row in self.spec["controller"]["inputs"]
+        ]
+        for observation, _, _ in self.inputs:
+            if observation not in OBSERVATIONS:
+                raise ValueError(f"controller input observation {observation!r} is not known")
         self.use_agent(agent)
         self.policies = []
         for name in self.spec["behaviours"]["order"]:
@@ -119,7 +130,7 @@ class ReferenceController:
         recharge = self.spec["controller"]["recharge_weights"]
         selection = self.spec["controller"]["selection_weights"]
         self.w_recharge = self.weights[recharge[0] : recharge[1]]
-        self.w_select = self.weights[selection[0] : selection[1]].reshape(3, 12)
+        self.w_select = self.weights[selection[0] : selection[1]].reshape(3, len(self.inputs))
 
     def step(
         self,
@@ -151,12 +162,18 @@ class ReferenceController:
         seen_distance = np.where(visible, np.asarray(distance, dtype=np.float64), np.inf)
         nb = np.clip((seen_bearing + math.pi) / (2 * math.pi), 0.0, 1.0)
         nd = np.clip(seen_distance / self.max_distance, 0.0, 1.0)
-        x = np.empty(12)
-        x[0] = energy / self.max_energy
-        x[1:7] = proximity
-        x[7], x[8], x[9] = nd[FACE], nd[LED], nd[BATTERY]
-        x[10] = 1.0
-        x[11] = float(bool(led_previous))
+        x = np.empty(len(self.inputs))
+        for column, (observation, arg, value) in enumerate(self.inputs):
+            if observation == "energy":
+                x[column] = energy / self.max_energy
+            elif observation == "proximity":
+                x[column] = proximity[arg]
+            elif observation == "distance":
+                x[column] = nd[arg]
+            elif observation == "constant":
+                x[column] = value
+            else:  # led_previous
+                x[column] = float(bool(led_previous))
         activation = self.w_select @ x
         masked = activation.copy()
         if not (visible[LED] or visible[FACE]):

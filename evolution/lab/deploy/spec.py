@@ -18,12 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from evolution.controller import INPUT_NAMES
-from evolution.genome import RECHARGE, SELECTION
+from evolution.controllers import CONTROLLERS, ControllerLayout, resolve
+from evolution.input_kernels import row_record
 from evolution.runner.config import RunConfig
 
-#: Bundle layout version (``bundle.json`` ``format``); the reference step checks it.
-BUNDLE_FORMAT = 1
+#: Bundle layout version (``bundle.json`` ``format``); the reference step checks it. Format 2:
+#: each controller input states the observation it is computed from (the input table's).
+BUNDLE_FORMAT = 2
 #: The distributions whose versions a bundle records (torch's is the one that matters: a
 #: ``.pt2`` program is loaded with the torch version that wrote it).
 RECORDED_DISTRIBUTIONS = ("cyber-rodent", "torch", "numpy", "mujoco")
@@ -92,33 +93,41 @@ def robot_geometry() -> dict[str, Any]:
     }
 
 
-def _controller_inputs(config: RunConfig, max_distance: float) -> list[dict[str, Any]]:
-    """The 12 controller inputs in order, each with its normalisation spelled out."""
-    from cyber_rodent import constants as C
+def check_deployable(config: RunConfig) -> ControllerLayout:
+    """The run's controller, if a bundle can hold it: a controller whose rule the reference step
+    implements, over inputs a robot computes from its observations.
 
-    evo = config.evolution
-    rules = {
-        "energy": f"energy / {evo.max_energy:g} (the active agent's energy)",
-        "face_distance": f"clip(distance_m / {max_distance:.6g}, 0, 1) of the nearest red face; "
-        "1 if none is seen",
-        "led_distance": f"clip(distance_m / {max_distance:.6g}, 0, 1) of the nearest green LED; "
-        "1 if none is seen",
-        "battery_distance": f"clip(distance_m / {max_distance:.6g}, 0, 1) of the nearest blue "
-        "battery pack; 1 if none is seen",
-        "bias": "1",
-        "led_previous": "1 if the robot's own LED was lit during the previous control step, "
-        "else 0 (after an agent switch: the LED the previous agent left)",
-    }
-    for sensor in C.PROXIMITY_SIX:
-        name, _, reach = C.RANGE_SENSORS[sensor]
-        rules[f"proximity_{name.removeprefix('range_')}"] = (
-            f"clip(1 - range[{sensor}] / {reach:g}, 0, 1) ({name}; 0 = nothing in range, "
-            "1 = touching)"
+    Raises:
+        ValueError: one line naming ``evolution.controller`` or the input that cannot go.
+    """
+    layout = resolve(config.evolution)
+    if not layout.spec.deployable:
+        able = ", ".join(name for name, spec in CONTROLLERS.items() if spec.deployable)
+        raise ValueError(
+            f"evolution.controller = {layout.spec.name!r}: a deployment bundle holds only "
+            f"controllers its reference step implements ({able})"
         )
-    missing = [n for n in INPUT_NAMES if n not in rules]
-    if missing:  # a new input needs its normalisation written down here
-        raise RuntimeError(f"controller inputs without a stated normalisation: {missing}")
-    return [{"index": i, "name": n, "value": rules[n]} for i, n in enumerate(INPUT_NAMES)]
+    for row in layout.inputs:
+        if row.observation is None:
+            raise ValueError(
+                f"controller input {row.name!r} states no observation a robot computes it "
+                "from (ControllerInput.observation): a deployment bundle cannot hold it"
+            )
+    return layout
+
+
+def _controller_inputs(
+    layout: ControllerLayout, config: RunConfig, max_distance: float
+) -> list[dict[str, Any]]:
+    """The controller inputs in order (the input table's rows), each with its normalisation
+    written out with the run's numbers."""
+    evo = config.evolution
+    numbers = {
+        "max_energy": f"{evo.max_energy:g}",
+        "max_recharge_steps": f"{evo.max_recharge_steps}",
+        "max_distance": f"{max_distance:.6g}",
+    }
+    return [row_record(row, i, numbers) for i, row in enumerate(layout.inputs)]
 
 
 def _survival(config: RunConfig, half_wheel_base: float) -> dict[str, Any]:
@@ -183,9 +192,9 @@ def _survival(config: RunConfig, half_wheel_base: float) -> dict[str, Any]:
             "exchange_duration_s": s.mate_consecutive_steps * dt,
             "signal": "the active agent's chosen behaviour is Mate, and the robot is alive, "
             "not docked and not in its reflex",
-            "exchanged": "each side sends its active agent's genome (39 float64, "
-            "controller_weights layout) and fitness; each stores the partner's (genome, "
-            "fitness) and counts one mating; both slots end",
+            "exchanged": "each side sends its active agent's genome "
+            f"({resolve(evo).length} float64, controller_weights layout) and fitness; each "
+            "stores the partner's (genome, fitness) and counts one mating; both slots end",
             "partners_per_step": 1,
         },
         "fitness": {
@@ -209,7 +218,7 @@ def bundle_spec(
 
     Args:
         config: the run's resolved configuration (every rule's number comes from it).
-        weights: (n_agents, 39) the bundled agents' controller weights.
+        weights: (n_agents, genes) the bundled agents' controller weights (39: the paper's).
         behaviour_files: behaviour name → its ``.pt2`` file name.
         values_sha256: behaviour name → checksum of the action values it was exported from.
         selection: how the agents were chosen (:meth:`Selection.note` and counts).
@@ -223,8 +232,15 @@ def bundle_spec(
     from cyber_rodent.vision.types import CLASS_NAMES, DEFAULT_MAX_DISTANCE
 
     evo, survival, camera = config.evolution, config.survival, config.camera
+    layout = check_deployable(config)
+    n_inputs = layout.n_inputs
+    recharge, selection_genes = layout.block("recharge"), layout.block("selection")
     max_distance = float(DEFAULT_MAX_DISTANCE)
     geometry = robot_geometry()
+    columns = {row.arg: i for i, row in enumerate(layout.inputs) if row.observation == "proximity"}
+    for finder in geometry["rangefinders"]:
+        k = finder["proximity_input"]
+        finder["controller_input"] = None if k is None else columns.get(k)
     versions = {name: _version(name) for name in RECORDED_DISTRIBUTIONS}
     versions["torch"] = str(torch.__version__)  # the exact build, e.g. "2.13.0+cpu"
     versions["python"] = platform.python_version()
@@ -284,15 +300,17 @@ def bundle_spec(
             "file": "controller_weights.npy",
             "n_agents": int(weights.shape[0]),
             "weights_sha256": hashlib.sha256(weights.tobytes()).hexdigest(),
-            "input_order": list(INPUT_NAMES),
-            "inputs": _controller_inputs(config, max_distance),
+            "kind": layout.spec.name,
+            "input_order": [row.name for row in layout.inputs],
+            "inputs": _controller_inputs(layout, config, max_distance),
             "outputs": list(BEHAVIOUR_NAMES),
-            "recharge_weights": [RECHARGE.start, RECHARGE.stop],
-            "selection_weights": [SELECTION.start, SELECTION.stop],
-            "selection_layout": "output-major (3, 12): row = output, column = input_order",
-            "selection_rule": "activations = W (3 x 12) @ inputs; the available behaviour with "
-            "the largest activation wins (Mate needs an LED or face in view, Forage a battery, "
-            "Search is always available; ties to the lower index)",
+            "recharge_weights": [recharge.start, recharge.stop],
+            "selection_weights": [selection_genes.start, selection_genes.stop],
+            "selection_layout": f"output-major (3, {n_inputs}): row = output, column = "
+            "input_order",
+            "selection_rule": f"activations = W (3 x {n_inputs}) @ inputs; the available "
+            "behaviour with the largest activation wins (Mate needs an LED or face in view, "
+            "Forage a battery, Search is always available; ties to the lower index)",
             "recharge_rule": f"w0*energy/{evo.max_energy:g} + "
             f"w1*steps/{evo.max_recharge_steps} + w2 <= 0: continue recharging",
             "led_rule": "on iff activation(mate) > activation(forage); dark while recharging",
@@ -332,4 +350,4 @@ def bundle_spec(
     }
 
 
-__all__ = ["BUNDLE_FORMAT", "LOAD_CALL", "bundle_spec", "robot_geometry"]
+__all__ = ["BUNDLE_FORMAT", "LOAD_CALL", "bundle_spec", "check_deployable", "robot_geometry"]
