@@ -421,6 +421,7 @@ def _survival_rules(sw: SurvivalWorld) -> survival_kernels.SurvivalRules:
         max_energy=float(cfg.max_energy),
         max_recharge_steps=int(cfg.max_recharge_steps),
         energy_decay=float(cfg.energy_decay),
+        mate_min_energy=float(cfg.mate_min_energy),
         max_steps_code=int(RechargeEnd.MAX_STEPS),
         full_code=int(RechargeEnd.FULL),
     )
@@ -485,9 +486,12 @@ def test_survival_begin_matches_its_reference(scene_world: World, scenes: Scenes
             led_rgba=led_rgba,
         )
         flags = survival_kernels.StepFlags(*(rng.random(n) < 0.5 for _ in range(3)))
+        # Every other trial with a mating threshold at half the maximum energy.
+        threshold = 0.0 if trial % 2 else 0.5 * sw.config.max_energy
+        trial_rules = rules._replace(mate_min_energy=threshold)
         ran = []
         for kernel in (survival_kernels.begin, survival_kernels.begin_reference):
-            args = (_copy(commands), _copy(state), _copy(actuation), rules, _copy(flags))
+            args = (_copy(commands), _copy(state), _copy(actuation), trial_rules, _copy(flags))
             ran.append((kernel(*args), args))
         (status_c, args_c), (status_r, args_r) = ran
         assert status_c == status_r

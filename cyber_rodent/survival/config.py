@@ -69,6 +69,10 @@ class SurvivalConfig:
             follows a mating; without a reflex the next agents of two robots still nose to nose
             mate at once, and such chained matings were most of CE's (docs/calibration.md,
             docs/design.md §9.7).
+        mate_min_energy: a robot signals Mate, and so can mate, only while its active agent's
+            energy at the start of the step is above this. 0 is the paper's rule (any living
+            agent may mate); later Cyber Rodent work let only well-fed robots mate
+            (docs/design.md §9.29).
     """
 
     initial_energy: float = number(
@@ -108,6 +112,9 @@ class SurvivalConfig:
     )
     capture_rule: str = choice("docking", CAPTURE_RULES, source="docs/design.md §9.5")
     mate_reflex: bool = boolean(True, source="docs/design.md §9.7")
+    mate_min_energy: float = number(
+        0.0, 0.0, ENERGY_LIMIT, unit="energy units", source="docs/design.md §9.29"
+    )
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -115,4 +122,5 @@ class SurvivalConfig:
         check_number("max_energy", self.max_energy, self.initial_energy, ENERGY_LIMIT)
         check_number("energy_decay", self.energy_decay, 0.0, self.max_energy)
         check_number("recharge_rate", self.recharge_rate, 0.0, self.max_energy)
+        check_number("mate_min_energy", self.mate_min_energy, 0.0, self.max_energy)
         check_integer("reflex_max_steps", self.reflex_max_steps, self.reflex_min_steps, 1000)

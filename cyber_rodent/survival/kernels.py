@@ -100,6 +100,7 @@ class SurvivalRules(NamedTuple):
     max_energy: float
     max_recharge_steps: int
     energy_decay: float
+    mate_min_energy: float  #: a robot signals Mate only with energy above this
     max_steps_code: int  #: ``RechargeEnd.MAX_STEPS``
     full_code: int  #: ``RechargeEnd.FULL``
 
@@ -194,7 +195,13 @@ def begin(
             colour = actuation.led_rgba[1 if on else 0]
             for k in range(4):
                 actuation.geom_rgba[actuation.led_geom[i], k] = colour[k]
-        flags.mate_signal[i] = commands.mate[i] and alive[i] and not rech and not reflex
+        flags.mate_signal[i] = (
+            commands.mate[i]
+            and alive[i]
+            and not rech
+            and not reflex
+            and state.energy[i] > rules.mate_min_energy
+        )
     return BEGIN_OK
 
 
@@ -240,12 +247,15 @@ def begin_reference(
             on = bool(led[i])
             actuation.led_on[i] = on
             actuation.geom_rgba[actuation.led_geom[i]] = actuation.led_rgba[int(on)]
-    # Only free, living robots take part in a mating handshake.
+    # Only free, living robots with energy above the threshold take part in a handshake
+    # (a living robot's energy is above 0, so the default threshold 0 adds no condition).
     signal = flags.mate_signal
     np.logical_and(commands.mate, alive, out=signal)
     if n_recharging or n_reflex:
         np.logical_and(signal, ~flags.recharging, out=signal)
         np.logical_and(signal, ~flags.in_reflex, out=signal)
+    if rules.mate_min_energy > 0.0:
+        np.logical_and(signal, state.energy > rules.mate_min_energy, out=signal)
     return BEGIN_OK
 
 

@@ -164,6 +164,7 @@ class SurvivalWorld:
             max_energy=float(cfg.max_energy),
             max_recharge_steps=int(cfg.max_recharge_steps),
             energy_decay=float(cfg.energy_decay),
+            mate_min_energy=float(cfg.mate_min_energy),
             max_steps_code=int(RechargeEnd.MAX_STEPS),
             full_code=int(RechargeEnd.FULL),
         )
