@@ -59,6 +59,11 @@ continues it. The same seed and actions give the same trajectories, bit for bit.
 
 Rendering: ``render_mode="rgb_array"`` returns the top-down view of the field
 (:class:`cyber_rodent.render.FieldRenderer`).
+
+A ready policy: ``policy = baseline_policy(env)``, then ``actions = policy(observations)``
+each step: the shipped behaviours with evolved controllers (:mod:`cyber_rodent.colony_baseline`),
+which dock, recharge and mate from the first steps. It reads the physical observations of
+:meth:`ColonyEnv.raw_observations`.
 """
 
 from __future__ import annotations
@@ -70,6 +75,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv  # type: ignore[import-untyped]  # no type hints
 
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
+from cyber_rodent.colony_baseline import BaselinePolicy, baseline_policy  # noqa: F401
 from cyber_rodent.gym_env import (
     ACTION_KINDS,
     DEFAULT_MAX_WHEEL_SPEED,
@@ -204,6 +210,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self.rewards = TaskRewards(TASK.sparse, scales, self.survival, n, TASK.target)
         self._rng: np.random.Generator | None = None
         self._renderer: FieldRenderer | None = None
+        self._raw: np.ndarray | None = None  # the latest observations in physical units
         self.steps = 0
 
     # --- pettingzoo API ---------------------------------------------------------------------------
@@ -229,6 +236,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         frame = self.vision.observe()
         self.rewards.reset(frame)
         states = robot_observations(self.survival, frame, self.max_range)
+        self._raw = states
         observations = {agent: states[i].copy() for agent, i in self._index.items()}
         return observations, {agent: {} for agent in self.agents}
 
@@ -274,6 +282,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         frame: VisionFrame = self.vision.observe()
         reward = total_reward(self.rewards.end(events, frame, TASK.reached(events)))
         states = robot_observations(self.survival, frame, self.max_range)
+        self._raw = states
         truncate = self.steps >= self.max_cycles
         sw = self.survival
         observations: dict[str, np.ndarray] = {}
@@ -296,6 +305,19 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
             }
         self.agents = [a for a in self.agents if not (terminations[a] or truncations[a])]
         return observations, rewards, terminations, truncations, infos
+
+    def raw_observations(self) -> dict[str, np.ndarray]:
+        """Every live agent's latest observation (of the last ``reset`` or ``step``) in physical
+        units: float32 (21,), names :attr:`observation_names`, units :attr:`observation_units`,
+        whatever form the observations returned by ``reset`` and ``step`` take. The baseline
+        policy (:func:`baseline_policy`) reads these.
+
+        Raises:
+            RuntimeError: before the first ``reset``.
+        """
+        if self._raw is None:
+            raise RuntimeError("no observation yet: call reset()")
+        return {agent: self._raw[self._index[agent]].copy() for agent in self.agents}
 
     def render(self) -> np.ndarray | None:
         """The top-down view of the field, (render_height, render_width, 3) uint8."""

@@ -73,7 +73,9 @@ def recorded(tmp_path_factory):
 
 
 def test_reference_step_imports_only_numpy_and_torch() -> None:
-    from evolution.lab.deploy import reference_step
+    """The bundle's reference_step.py is cyber_rodent/robot_step.py: the standard library (its
+    command line: argparse, sys), numpy, and torch only inside the torch backend."""
+    from cyber_rodent import robot_step as reference_step
 
     tree = ast.parse(open(reference_step.__file__).read())
     imported = set()
@@ -82,7 +84,10 @@ def test_reference_step_imports_only_numpy_and_torch() -> None:
             imported |= {a.name.split(".")[0] for a in node.names}
         elif isinstance(node, ast.ImportFrom):
             imported.add((node.module or "").split(".")[0])
-    assert imported <= {"__future__", "json", "math", "dataclasses", "pathlib", "numpy", "torch"}
+    assert imported <= {"__future__", "json", "math", "dataclasses", "pathlib", "numpy", "torch",
+                        "argparse", "sys", "typing"}  # fmt: skip
+    top_level = {a.name for node in tree.body if isinstance(node, ast.Import) for a in node.names}
+    assert "torch" not in top_level  # optional: imported by the torch backend only
 
 
 def test_bundle_round_trips(recorded) -> None:
@@ -103,7 +108,7 @@ def test_bundle_round_trips(recorded) -> None:
         expected = GreedyPolicy(load_values(name)).act(states)
         np.testing.assert_array_equal(module(torch.from_numpy(states)).numpy(), expected)
     assert (bundle / REFERENCE_FILE).read_text() == open(
-        importlib.import_module("evolution.lab.deploy.reference_step").__file__
+        importlib.import_module("cyber_rodent.robot_step").__file__
     ).read()
 
 
@@ -426,3 +431,197 @@ def test_cli_refuses_a_run_where_no_agent_mated(tmp_path, capsys) -> None:
     assert err.count("\n") == 1
     assert "none of the 4 agents ranked" in err and "--include-unmated" in err
     assert not out.exists()
+
+
+# --- the bundle a robot engineer installs and checks: portable behaviours, test vectors ---
+def _run_reference(bundle, *args, block_torch=False):
+    """Run the bundle's reference_step.py as a program in the bundle directory."""
+    import subprocess
+
+    if block_torch:  # an installation without torch: importing it fails
+        command = [sys.executable, "-c", "import sys, runpy; sys.modules['torch'] = None; "
+                   "sys.argv = ['reference_step.py', *sys.argv[1:]]; "
+                   "runpy.run_path('reference_step.py', run_name='__main__')", *args]  # fmt: skip
+    else:
+        command = [sys.executable, REFERENCE_FILE, *args]
+    return subprocess.run(command, cwd=bundle, capture_output=True, text=True, timeout=300)
+
+
+def test_fresh_bundle_passes_its_check_on_every_backend(odd_bundle) -> None:
+    spec = json.loads((odd_bundle / BUNDLE_FILE).read_text())
+    vectors = spec["test_vectors"]
+    # 2 robots; energy 80 at 2 per step: the agents die at step 40 and newcomers take over
+    assert vectors["file"] == "test_vectors.npz" and vectors["rows"] == 80
+    assert vectors["agents"] == [0, 1]  # every agent of the bundle acted
+    result = _run_reference(odd_bundle, "--check", "--backend", "all")
+    assert result.returncode == 0, result.stdout + result.stderr
+    n = vectors["rows"]
+    assert result.stdout.splitlines() == [
+        f"PASS {n}/{n} (backend numpy)", f"PASS {n}/{n} (backend table)",
+        f"PASS {n}/{n} (backend torch)",
+    ]  # fmt: skip
+    plain = _run_reference(odd_bundle, "--check")  # the README's command
+    assert plain.returncode == 0 and plain.stdout == f"PASS {n}/{n} (backend numpy)\n"
+
+
+def test_check_names_the_first_corrupted_row(odd_bundle, tmp_path) -> None:
+    import shutil
+
+    bundle = tmp_path / "corrupt"
+    shutil.copytree(odd_bundle, bundle)
+    with np.load(bundle / "test_vectors.npz") as data:
+        vectors = {k: data[k] for k in data.files}
+    row = 37
+    from cyber_rodent.commands import N_COMMANDS
+
+    expected = (int(vectors["command"][row]) + 1) % N_COMMANDS
+    vectors["command"][row] = expected
+    np.savez_compressed(bundle / "test_vectors.npz", **vectors)
+    result = _run_reference(bundle, "--check")
+    assert result.returncode == 1
+    where = (f"row {row} (step {vectors['step'][row]}, robot {vectors['robot'][row]}, agent "
+             f"{vectors['agent'][row]})")  # fmt: skip
+    assert result.stdout.startswith(
+        f"FAIL (backend numpy) {where}: command expected {expected}, got "
+    ), result.stdout
+    vectors["behaviour"][3] = (vectors["behaviour"][3] + 1) % 3
+    np.savez_compressed(bundle / "test_vectors.npz", **vectors)
+    assert "FAIL (backend numpy) row 3 (" in _run_reference(bundle, "--check").stdout
+
+
+def test_reference_step_runs_on_numpy_alone(odd_bundle) -> None:
+    n = json.loads((odd_bundle / BUNDLE_FILE).read_text())["test_vectors"]["rows"]
+    result = _run_reference(odd_bundle, "--check", "--backend", "all", block_torch=True)
+    assert result.returncode == 0 and result.stdout == (
+        f"PASS {n}/{n} (backend numpy)\nPASS {n}/{n} (backend table)\n"
+    ), result.stdout + result.stderr
+    refused = _run_reference(odd_bundle, "--check", "--backend", "torch", block_torch=True)
+    assert refused.returncode == 2 and "backend 'torch' needs torch" in refused.stderr
+    summary = _run_reference(odd_bundle, block_torch=True)
+    assert summary.returncode == 0 and "backends available here: numpy, table;" in summary.stdout
+
+
+def test_numpy_table_and_torch_backends_agree(odd_bundle) -> None:
+    """The three implementations of the behaviours, and the simulator's GreedyPolicy, choose
+    the same command on random inputs and on the corners of the input square."""
+    reference = _load_reference(odd_bundle)
+    x = np.concatenate([np.random.default_rng(5).random((1500, 2)),
+                        [[0.0, 0.0], [1.0, 1.0], [0.0, 1.0], [1.0, 0.0]]])  # fmt: skip
+    robots = {b: reference.ReferenceController(odd_bundle, backend=b)
+              for b in ("numpy", "table", "torch")}  # fmt: skip
+    for index, name in enumerate(("mate", "forage", "search")):
+        expected = GreedyPolicy(load_values(name)).act(x)
+        assert len(set(expected.tolist())) >= 3
+        for backend, robot in robots.items():
+            got = np.array([robot.policies[index].act(s) for s in x])
+            np.testing.assert_array_equal(got, expected, err_msg=f"{name} {backend}")
+
+
+def test_greedy_tables_are_the_policies_on_every_cell() -> None:
+    from behaviours.portable import greedy_table
+    from behaviours.tile_coding import TileCoder
+
+    for name in ("mate", "forage", "search"):
+        values = load_values(name)
+        table = greedy_table(values)
+        scale = TileCoder(values.coder_config).scale
+        assert table.shape == tuple(int(s) + 1 for s in scale) and table.dtype == np.int8
+        q = np.stack(np.meshgrid(*(np.arange(n) for n in table.shape), indexing="ij"), -1)
+        states = np.minimum((q.reshape(-1, 2) + 0.5) / scale, 1.0)
+        assert (np.floor(states * scale) == q.reshape(-1, 2)).all()  # one state per cell
+        np.testing.assert_array_equal(table.reshape(-1), GreedyPolicy(values).act(states))
+
+
+def test_portable_hash_is_the_tile_coders(odd_bundle) -> None:
+    from behaviours.tile_coding import TileCoder
+
+    reference = _load_reference(odd_bundle)
+    robot = reference.ReferenceController(odd_bundle, backend="numpy")
+    described = json.loads((odd_bundle / "behaviours.json").read_text())
+    assert described["hash"]["multipliers_hex"] == ["0x7FEB352D", "0x846CA68B"]
+    assert "mix32" in described["pseudo_code"] and len(described["algorithm"]) >= 5
+    x = np.random.default_rng(6).random((300, 2))
+    for index, name in enumerate(("mate", "forage", "search")):
+        coder = TileCoder(load_values(name).coder_config)
+        rows = np.array([robot.policies[index].rows(s) for s in x])
+        np.testing.assert_array_equal(rows, coder.hashed_indices(x))
+
+
+_GOOD = dict(
+    ranges=np.full(8, 0.3), bearing=np.zeros(3), distance=np.ones(3),
+    visible=np.array([True, False, True]), energy=100.0, led_previous=False, docked=False,
+    recharge_steps=0,
+)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"energy": math.nan}, r"energy must be a finite number in \[0, 150\]; got nan"),
+        ({"energy": math.inf}, r"energy must be a finite number in \[0, 150\]; got inf"),
+        ({"energy": -1.0}, r"energy must be a finite number in \[0, 150\]; got -1.0"),
+        ({"energy": 150.5}, r"energy must be a finite number in \[0, 150\]; got 150.5"),
+        ({"energy": "full"}, r"energy must be a finite number .*; got 'full'"),
+        ({"ranges": np.full(7, 0.3)}, r"ranges must be range readings .* shape \(8,\); got "
+                                      r"shape \(7,\)"),
+        ({"ranges": np.full(8, math.nan)}, r"ranges must be 8 range readings in m, finite and "
+                                           r">= 0, shape \(8,\); got \[nan"),
+        ({"ranges": np.r_[np.full(7, 0.3), math.inf]}, r"ranges must be 8 .*inf\]"),
+        ({"ranges": np.r_[-0.01, np.full(7, 0.3)]}, r"ranges must be 8 .*got \[-0.01"),
+        ({"bearing": np.array([4.0, 0.0, 0.0])}, r"bearing must be 3 bearings in \[-pi, pi\] "
+                                                 r"rad, finite where visible.*got \[4.0"),
+        ({"bearing": np.array([0.0, 0.0, math.nan])}, r"bearing must be .*got \[0.0, 0.0, nan"),
+        ({"bearing": np.zeros(2)}, r"bearing must be bearings in rad .* shape \(3,\); got "
+                                   r"shape \(2,\)"),
+        ({"distance": np.array([-1.0, 1.0, 1.0])}, r"distance must be 3 distances in m, finite "
+                                                   r"and >= 0 where visible"),
+        ({"distance": np.array([1.0, 1.0, math.inf])}, r"distance must be 3 .*inf\]"),
+        ({"visible": np.array([True, False])}, r"visible must be 3 flags \(bool, or 0 / 1\), "
+                                               r"shape \(3,\); got \[True, False\]"),
+        ({"visible": np.array([2, 0, 0])}, r"visible must be 3 flags .*got \[2, 0, 0\]"),
+        ({"led_previous": 2}, r"led_previous must be a flag \(bool, or 0 / 1\); got 2"),
+        ({"docked": math.nan}, r"docked must be a flag .*; got nan"),
+        ({"recharge_steps": -1}, r"recharge_steps must be an integer in \[0, 25\]; got -1"),
+        ({"recharge_steps": 26}, r"recharge_steps must be an integer in \[0, 25\]; got 26"),
+        ({"recharge_steps": 1.5}, r"recharge_steps must be an integer in \[0, 25\]; got 1.5"),
+    ],
+)  # fmt: skip
+def test_reference_step_refuses_bad_input(odd_bundle, change, message) -> None:
+    robot = _load_reference(odd_bundle).ReferenceController(odd_bundle)
+    robot.step(**_GOOD)  # the unchanged input is fine
+    with pytest.raises(ValueError, match=message):
+        robot.step(**{**_GOOD, **change})
+    # a target that is not seen: its bearing and distance are ignored (the simulator: inf)
+    robot.step(**{**_GOOD, "distance": np.array([1.0, math.inf, 1.0]),
+                  "bearing": np.array([0.0, math.nan, 0.0])})  # fmt: skip
+
+
+def test_readme_install_commands_and_portable_code(odd_bundle, monkeypatch) -> None:
+    text = (odd_bundle / README_FILE).read_text()
+    public = torch.__version__.split("+")[0]
+    install = (f"python3 -m venv .venv && .venv/bin/pip install numpy=={np.__version__} && "
+               f".venv/bin/pip install torch=={public}")  # fmt: skip
+    assert install in text and ".venv/bin/python reference_step.py --check" in text
+    if "+cpu" in torch.__version__:
+        assert f"torch=={public} --index-url https://download.pytorch.org/whl/cpu" in text
+        assert "builds tagged +cpu come from the PyTorch wheel index" in text
+    section = text.split("## Portable behaviours", 1)[1]
+    code = re.search(r"```python\n(.*?)```", section, flags=re.S).group(1)
+    monkeypatch.chdir(odd_bundle)
+    namespace: dict = {}
+    exec(compile(code, "README.md", "exec"), namespace)
+    expected = GreedyPolicy(load_values("forage")).act(np.array([0.75, 0.25]))
+    assert namespace["command"] == int(expected)
+
+
+def test_bundle_without_programs_runs_on_numpy(tmp_path) -> None:
+    bundle = write_bundle(tmp_path / "lean", np.zeros((1, 39)), programs=False,
+                          action_values=False, vector_steps=30)  # fmt: skip
+    assert not list(bundle.glob("*.pt2"))
+    spec = json.loads((bundle / BUNDLE_FILE).read_text())
+    assert spec["portable"]["backends"] == ["table"] and spec["test_vectors"]["rows"] == 120
+    result = _run_reference(bundle, "--check")
+    assert result.returncode == 0 and result.stdout == "PASS 120/120 (backend table)\n"
+    refused = _run_reference(bundle, "--check", "--backend", "numpy")
+    assert refused.returncode == 2 and "behaviours.npz has no q array" in refused.stderr
+    assert "holds no `.pt2` programs" in (bundle / README_FILE).read_text()

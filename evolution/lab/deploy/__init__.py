@@ -2,26 +2,34 @@
 
 A bundle is a directory:
 
-- ``mate.pt2``, ``forage.pt2``, ``search.pt2``: the behaviours' greedy policies exported with
+- ``behaviours.json`` and ``behaviours.npz``: the behaviours in a portable form, needing no
+  torch (:mod:`behaviours.portable`): the tile-coded action values and the greedy table of each,
+  with the tile coding (tilings, offsets, the hash's constants and algorithm in words and
+  pseudo-code), the input normalisation and the wheel commands, for a port to another language;
+- ``mate.pt2``, ``forage.pt2``, ``search.pt2``: the same greedy policies exported with
   ``torch.export`` (:mod:`behaviours.export`; float64 (batch, 2) inputs in [0, 1] → int64
-  wheel command index);
+  wheel command index), loaded with the exact torch version of ``bundle.json``;
 - ``controller_weights.npy``: (n_agents, 39) float64 genomes of the agents to run (layout:
   recharge weights ``[0:3]``, selection weights ``[3:39]`` output-major; with more inputs in the
   input table, 3 more weights per input);
+- ``test_vectors.npz``: a few hundred real simulator steps of the bundle's own agents, raw
+  inputs → behaviour, LEDs, recharge decision, wheel command (:mod:`.vectors`);
 - ``bundle.json``: the control period, the robot frame and sign conventions, the sensors'
   geometry and units, every input's normalisation, the controller, the wheel command table, the
-  exact torch version and the load call, the survival bookkeeping a robot runs itself (energy,
-  recharging, reflex, time sharing, IR mating), how the agents were chosen and the run's whole
-  resolved config (:mod:`evolution.lab.deploy.spec`);
-- ``README.md``: the same for a reader, with runnable loading code and the bookkeeping as
-  pseudo-code (:mod:`evolution.lab.deploy.readme`);
-- ``reference_step.py``: a plain-Python reference of one control step that loads the bundle with
-  numpy and torch only (:mod:`evolution.lab.deploy.reference_step`, copied verbatim).
+  exact torch version and the load call, how to install and check, the survival bookkeeping a
+  robot runs itself (energy, recharging, reflex, time sharing, IR mating), how the agents were
+  chosen and the run's whole resolved config (:mod:`evolution.lab.deploy.spec`);
+- ``README.md``: the same for a reader, with the install commands, runnable loading code and
+  the bookkeeping as pseudo-code (:mod:`evolution.lab.deploy.readme`);
+- ``reference_step.py``: one control step in plain numpy (torch optional), which loads the
+  bundle and, with ``--check``, replays the test vectors: ``cyber_rodent/robot_step.py`` copied
+  verbatim (the colony's baseline policy runs the same file).
 
 A bundle is written into a temporary directory beside its destination and renamed into place,
 so a failure never leaves a half-written bundle. :func:`record_decisions` records a simulated
-run's raw observations and decisions, which ``tests/test_deploy.py`` replays through the
-reference step to show that both decide alike.
+run's raw observations and decisions; the bundle's test vectors are such a recording, and
+``tests/test_deploy.py`` replays longer ones through the reference step to show that both
+decide alike.
 
 A bundle holds the paper's controller (``evolution.controller = paper``) over inputs a robot
 computes from its observations (each row of the input table states which); a run of another
@@ -42,10 +50,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cyber_rodent.atomic import TEMP_MARK, write_text
+from cyber_rodent import robot_step
+from cyber_rodent.atomic import TEMP_MARK, atomic_output, write_text
 from evolution.genome import Genome
 from evolution.lab.deploy.readme import render_readme
 from evolution.lab.deploy.spec import BUNDLE_FORMAT, bundle_spec, check_deployable
+from evolution.lab.deploy.vectors import (
+    DEFAULT_STEPS,
+    VECTORS_FILE,
+    record_decisions,
+    record_test_vectors,
+)
 from evolution.runner.config import RunConfig
 
 if TYPE_CHECKING:
@@ -56,7 +71,8 @@ BUNDLE_FILE = "bundle.json"
 README_FILE = "README.md"
 WEIGHTS_FILE = "controller_weights.npy"
 REFERENCE_FILE = "reference_step.py"
-_REFERENCE_SOURCE = Path(__file__).with_name(REFERENCE_FILE)
+#: The file copied into every bundle as ``reference_step.py``.
+REFERENCE_SOURCE = Path(robot_step.__file__)
 
 
 def _genome_matrix(genomes: Sequence[Genome] | np.ndarray, length: int) -> np.ndarray:
@@ -140,6 +156,9 @@ def write_bundle(
     values_dir: str | os.PathLike[str] | None = None,
     selection: dict[str, Any] | None = None,
     provenance: dict[str, Any] | None = None,
+    programs: bool = True,
+    action_values: bool = True,
+    vector_steps: int = DEFAULT_STEPS,
 ) -> Path:
     """Write a deployment bundle (see the module docstring) and return its directory.
 
@@ -154,6 +173,10 @@ def write_bundle(
         values_dir: where to load the values from (default: the shipped ones).
         selection: how the agents were chosen (``bundle.json`` ``selection``).
         provenance: where the agents came from (run, checkpoint, per-agent records).
+        programs: write the ``.pt2`` programs (needs torch; False: the portable form only).
+        action_values: write the tile-coded action values into ``behaviours.npz`` (False:
+            the greedy tables only, a few kB; the reference step's ``"table"`` backend).
+        vector_steps: control steps of the recorded test vectors (>= 1).
 
     Raises:
         ValueError: bad genomes, config or destination, or a controller or input a bundle
@@ -161,8 +184,8 @@ def write_bundle(
         FileNotFoundError: the behaviours' values are missing.
     """
     from behaviours.definitions import load_values
-    from behaviours.export import export_greedy_policy
     from behaviours.inputs import BEHAVIOUR_NAMES
+    from behaviours.portable import write_portable
 
     if config is None:
         config = RunConfig()
@@ -170,20 +193,34 @@ def write_bundle(
         raise ValueError(f"config must be a RunConfig, got {type(config).__name__}")
     matrix = _genome_matrix(genomes, check_deployable(config).length)
     root = check_bundle_dir(out)
+    if isinstance(vector_steps, bool) or not isinstance(vector_steps, int) or vector_steps < 1:
+        raise ValueError(f"vector_steps must be an integer >= 1, got {vector_steps!r}")
     chosen = {
         name: values[name] if values is not None else load_values(name, values_dir)
         for name in BEHAVIOUR_NAMES
     }
+    vectors, vectors_record = record_test_vectors(config, matrix, chosen, steps=vector_steps)
     with staged_directory(root.absolute()) as temp:
-        files, checksums = {}, {}
-        for name, action_values in chosen.items():
-            files[name] = export_greedy_policy(action_values, temp / f"{name}.pt2").name
-            checksums[name] = action_values.checksum
+        files = {}
+        if programs:
+            from behaviours.export import export_greedy_policy
+
+            for name, v in chosen.items():
+                files[name] = export_greedy_policy(v, temp / f"{name}.pt2").name
+        checksums = {name: v.checksum for name, v in chosen.items()}
         np.save(temp / WEIGHTS_FILE, matrix)
-        shutil.copyfile(_REFERENCE_SOURCE, temp / REFERENCE_FILE)
+        with atomic_output(temp / VECTORS_FILE) as staged, open(staged, "wb") as handle:
+            np.savez_compressed(handle, **vectors)  # type: ignore[arg-type]  # numpy's stubs
+        shutil.copyfile(REFERENCE_SOURCE, temp / REFERENCE_FILE)
         spec = bundle_spec(
-            config, matrix, files, checksums, selection=selection, provenance=provenance
-        )
+            config, matrix, files, checksums, selection=selection, provenance=provenance,
+            test_vectors=vectors_record, action_values=action_values,
+        )  # fmt: skip
+        norm = spec["normalisation"]
+        write_portable(
+            chosen, temp, spec["commands"], norm["max_distance"], norm["range_max"],
+            action_values=action_values,
+        )  # fmt: skip
         text = json.dumps(spec, indent=2, sort_keys=True, default=repr) + "\n"
         write_text(temp / BUNDLE_FILE, text)
 
@@ -191,53 +228,13 @@ def write_bundle(
     return root
 
 
-def record_decisions(runner: Any, steps: int) -> dict[str, np.ndarray]:
-    """Step ``runner`` (an :class:`~evolution.runner.EvolutionRunner`) and record, per step and
-    robot, the raw observations the step used and the decisions it took.
-
-    Returns:
-        Arrays with a leading (steps, n_robots) shape: observations ``ranges`` (8),
-        ``bearing``/``distance``/``visible`` (3), ``energy``, ``led_previous``, ``docked``,
-        ``recharge_steps``, ``weights`` (39; the active agent's genome); decisions
-        ``behaviour``, ``led`` (shown), ``led_selection``, ``command``, ``continue_recharge``
-        and ``inputs`` (12; one per row of the input table).
-    """
-    survival, perception, action = runner.survival, runner.perception, runner.action
-    keys = ("ranges", "bearing", "distance", "visible", "energy", "led_previous", "docked",
-            "recharge_steps", "weights", "behaviour", "led", "led_selection", "command",
-            "continue_recharge", "inputs")  # fmt: skip
-    rows: dict[str, list[np.ndarray]] = {k: [] for k in keys}
-    for _ in range(steps):
-        controller = runner.controller
-        before = {
-            "energy": survival.energy.copy(),
-            "led_previous": runner.world.led_on.copy(),
-            "docked": survival.docked.copy(),
-            "recharge_steps": survival.recharge_steps.copy(),
-            "weights": controller.buffers.weights.copy(),
-        }
-        runner.step()
-        for k, v in before.items():
-            rows[k].append(v)
-        nearest = perception.nearest
-        rows["ranges"].append(perception.sensors.ranges.copy())
-        rows["bearing"].append(nearest.bearing.copy())
-        rows["distance"].append(nearest.distance.copy())
-        rows["visible"].append(nearest.visible.copy())
-        rows["behaviour"].append(controller.behaviour.copy())
-        rows["led_selection"].append(controller.led.copy())
-        rows["led"].append(action.led.copy())
-        rows["command"].append(action.commands.copy())
-        rows["continue_recharge"].append(controller.continue_recharge.copy())
-        rows["inputs"].append(controller.buffers.inputs.copy())
-    return {k: np.stack(v) for k, v in rows.items()}
-
-
 __all__ = [
     "BUNDLE_FILE",
     "BUNDLE_FORMAT",
     "README_FILE",
     "REFERENCE_FILE",
+    "REFERENCE_SOURCE",
+    "VECTORS_FILE",
     "WEIGHTS_FILE",
     "check_bundle_dir",
     "record_decisions",

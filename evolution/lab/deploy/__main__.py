@@ -44,6 +44,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="let agents that never mated qualify too (the plain fitness ranking)",
     )  # fmt: skip
     parser.add_argument(
+        "--portable-only", action="store_true",
+        help="leave out the .pt2 programs and the action values: the behaviours' greedy tables "
+        "only (a few kB; needs no torch to write or to run)",
+    )  # fmt: skip
+    parser.add_argument(
         "--out", required=True, metavar="DIR",
         help="bundle directory: new, empty, or an earlier bundle to replace",
     )  # fmt: skip
@@ -141,8 +146,11 @@ def _run(args: argparse.Namespace, prog: str) -> int:
     provenance = {
         "run": str(source),
         "checkpoint": checkpoint.name,
+        "generation": checkpoint_generation,
         "policies": record["policies"],
         "seed": record.get("seed"),
+        "method": (record.get("config") or {}).get("method"),
+        "versions": record.get("versions"),
         "agents": agents,
     }
     chosen = {
@@ -155,9 +163,11 @@ def _run(args: argparse.Namespace, prog: str) -> int:
         "note": selection.note(),
     }
     values = {name: p.values for name, p in zip(BEHAVIOUR_NAMES, greedy, strict=True)}
+    portable_only = bool(getattr(args, "portable_only", False))
     path = write_bundle(
         out, [a.genome for a in selection.agents], config=config, values=values,
-        selection=chosen, provenance=provenance,
+        selection=chosen, provenance=provenance, programs=not portable_only,
+        action_values=not portable_only,
     )  # fmt: skip
     if selection.short:
         print(f"{prog}: note: {selection.note()}")
@@ -168,9 +178,10 @@ def _run(args: argparse.Namespace, prog: str) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m evolution.lab.deploy",
-        description="Write a deployment bundle (exported behaviours, controller weights, the "
-        "robot's conventions and survival bookkeeping in bundle.json and README.md, a "
-        "plain-Python reference step) of the fittest agents of a run that mated.",
+        description="Write a deployment bundle (the behaviours exported and in a portable form, "
+        "controller weights, recorded test vectors, the robot's conventions and survival "
+        "bookkeeping in bundle.json and README.md, a plain numpy reference step with --check) "
+        "of the fittest agents of a run that mated.",
     )
     add_arguments(parser)
     return run(parser.parse_args(argv))

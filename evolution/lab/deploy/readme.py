@@ -2,10 +2,11 @@
 
 Rendering from the record (:func:`evolution.lab.deploy.spec.bundle_spec`) and nothing else means
 the README cannot state a number the bundle does not carry. The sections a robot engineer
-needs, in order: the control period, the robot frame and sign conventions, the sensors, every
-input's normalisation, the controller, the wheel commands, how to load the behaviours (runnable
-code, tested), and the survival bookkeeping the robot must run itself as pseudo-code beside
-``reference_step.py``.
+needs, in order: the files and versions, how to install and check the bundle (exact commands,
+tested in a clean environment), the control period, the robot frame and sign conventions, the
+sensors, every input's normalisation, the controller, the wheel commands, how to load the
+behaviours (runnable code, tested) and their portable form, and the survival bookkeeping the
+robot must run itself as pseudo-code beside ``reference_step.py``.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 SECTIONS = (
     "Contents",
     "Versions",
+    "Installing and checking",
     "Control period",
     "Frame and sign conventions",
     "Sensors",
@@ -23,6 +25,7 @@ SECTIONS = (
     "Controller",
     "Wheel commands",
     "Loading the behaviours",
+    "Portable behaviours",
     "Survival bookkeeping",
     "Agents",
 )
@@ -63,6 +66,61 @@ def _load_code(spec: dict[str, Any]) -> list[str]:
         'commands = programs["forage"](torch.from_numpy(states)).numpy()  # int64 (batch,)',
         "```",
     ]
+
+
+def _portable_code(spec: dict[str, Any]) -> list[str]:
+    return [
+        "```python",
+        "import json",
+        "import math",
+        "",
+        "import numpy as np",
+        "",
+        "# run in the bundle directory: numpy only",
+        'described = json.loads(open("behaviours.json").read())',
+        'arrays = np.load("behaviours.npz")',
+        'forage = next(b for b in described["behaviours"] if b["name"] == "forage")',
+        "x = (0.75, 0.25)  # normalised (bearing, distance) of the nearest pack",
+        'cell = tuple(math.floor(v * s) for v, s in zip(x, forage["scale"]))',
+        'command = int(arrays[forage["greedy"]][cell])  # wheel command index',
+        "```",
+    ]
+
+
+def _install(spec: dict[str, Any]) -> list[str]:
+    install = spec.get("install") or {}
+    vectors = spec.get("test_vectors") or {}
+    if not install:
+        return ["This bundle states no install commands.", ""]
+    out = [
+        f"`reference_step.py` needs Python {install['python']} and numpy; torch only for the "
+        "`.pt2` programs. In the bundle directory:",
+        "",
+        "```bash",
+        *install["commands"],
+        install["check"],
+        "```",
+        "",
+    ]
+    if install.get("torch"):
+        out += [
+            f"`{install['torch']}`: {install['torch_note']}. Without torch, the first command "
+            f"is `{install['numpy_only']}` and the check runs the portable behaviours alone.",
+            "",
+        ]
+    if vectors:
+        out += [
+            f"`--check` replays `{vectors['file']}`: {vectors['rows']} rows recorded from the "
+            f"simulator itself ({vectors['recorded']}). Each row holds one step's raw inputs "
+            "(8 ranges, the nearest LED, face and pack, energy, previous LED, docked, "
+            "recharge steps) and what the simulator decided (behaviour, LEDs, recharge "
+            "decision, wheel command, the controller inputs). It prints `PASS n/n`, or `FAIL` "
+            "with the first row that differs, and exits 0 or 1. "
+            f"`{install['check_all']}` runs every backend installed (numpy, the greedy "
+            "table, torch) on the same rows; a port to another language replays the same rows.",
+            "",
+        ]
+    return out
 
 
 def _pseudo_code(spec: dict[str, Any]) -> list[str]:
@@ -176,17 +234,31 @@ def render_readme(spec: dict[str, Any]) -> str:
         "## Contents",
         "",
     ]
+    portable = spec.get("portable") or {}
+    vectors = spec.get("test_vectors") or {}
     files = [
         [f"`{behaviours['files'][name]}`", f"behaviour {name}: greedy policy, `torch.export` "
          "program"]
-        for name in behaviours["order"]
+        for name in behaviours["order"] if name in behaviours["files"]
     ]  # fmt: skip
+    if portable:
+        held = "action values and greedy tables" if portable["action_values"] else \
+            "greedy tables"  # fmt: skip
+        files += [
+            [f"`{portable['spec']}`", "the behaviours' tile coding, hash, input normalisation "
+             "and wheel commands, in words and pseudo-code"],
+            [f"`{portable['arrays']}`", f"the behaviours' {held} (numpy arrays; no torch)"],
+        ]  # fmt: skip
     files += [
         [f"`{controller['file']}`", f"({controller['n_agents']}, "
          f"{controller['selection_weights'][1]}) float64 controller weights, one row per agent"],
         ["`bundle.json`", "every number and convention of this README, machine-readable"],
-        ["`reference_step.py`", "one control step in plain numpy + torch (the decision only)"],
+        ["`reference_step.py`", "one control step in plain numpy (torch optional); `--check` "
+         "replays the test vectors"],
     ]  # fmt: skip
+    if vectors:
+        files += [[f"`{vectors['file']}`", f"{vectors['rows']} recorded simulator steps: "
+                   "inputs and the decisions taken"]]  # fmt: skip
     out += _table(["file", "content"], files) + [""]
 
     versions = spec["versions"]
@@ -198,6 +270,7 @@ def render_readme(spec: dict[str, Any]) -> str:
         f"{spec['torch']['note']}. Wheel command set version {spec['command_set_version']}.",
         "",
     ]
+    out += ["## Installing and checking", ""] + _install(spec)
 
     out += [
         "## Control period",
@@ -296,14 +369,37 @@ def render_readme(spec: dict[str, Any]) -> str:
     ])  # fmt: skip
     out += [""]
 
-    out += [
-        "## Loading the behaviours",
-        "",
-        f"Input: {behaviours['input']}. Output: {spec['torch']['output']}. From Python, with "
-        f"the torch version above (`{spec['torch']['load']}`):",
-        "",
-    ]
-    out += _load_code(spec) + [""]
+    out += ["## Loading the behaviours", ""]
+    if behaviours["files"]:
+        out += [
+            f"Input: {behaviours['input']}. Output: {spec['torch']['output']}. From Python, "
+            f"with the torch version above (`{spec['torch']['load']}`):",
+            "",
+        ]
+        out += _load_code(spec) + [""]
+    else:
+        out += ["This bundle holds no `.pt2` programs: its behaviours are the portable form "
+                "below.", ""]  # fmt: skip
+
+    out += ["## Portable behaviours", ""]
+    if portable:
+        backends = " and ".join(f"`{b}`" for b in portable["backends"])
+        out += [
+            f"`{portable['spec']}` and `{portable['arrays']}` hold the same greedy policies "
+            "without torch, for a port to another language: per behaviour its tile coder "
+            "(resolution, tilings, offsets, the hash seed and each tiling's start value, table "
+            "size), the `lowbias32` hash (constants and algorithm, `hash`), the algorithm in "
+            "words (`algorithm`) and as pseudo-code (`pseudo_code`), the input normalisation "
+            "and the wheel commands. `<name>_greedy` is the command of every input cell "
+            "`(floor(x0 * scale0), floor(x1 * scale1))`: the tile coder reads an input only "
+            "through these two integers, so one lookup gives exactly the tile-coded policy's "
+            f"command. `reference_step.py` runs them with numpy only (backends {backends}; "
+            "`--backend torch` for the programs). One lookup, in the bundle directory:",
+            "",
+        ]
+        out += _portable_code(spec) + [""]
+    else:
+        out += ["This bundle holds no portable behaviours (written before them).", ""]
 
     energy, recharge, reflex = survival["energy"], survival["recharge"], survival["reflex"]
     sharing, mating = survival["time_sharing"], survival["mating"]

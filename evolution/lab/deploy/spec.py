@@ -30,6 +30,11 @@ BUNDLE_FORMAT = 2
 RECORDED_DISTRIBUTIONS = ("cyber-rodent", "torch", "numpy", "mujoco")
 #: How to load one exported behaviour (the README shows it as runnable code).
 LOAD_CALL = "torch.export.load(path).module()"
+#: Where pip finds torch's builds with a local version tag (``2.13.0+cpu``: the CPU wheels); a
+#: plain version (no tag) comes from PyPI.
+TORCH_INDEX = "https://download.pytorch.org/whl/{tag}"
+#: The oldest Python that runs ``reference_step.py``.
+REFERENCE_PYTHON = "3.10"
 
 
 def _version(distribution: str) -> str | None:
@@ -91,6 +96,45 @@ def robot_geometry() -> dict[str, Any]:
         "camera_position_m": camera_position,
         "ir_port": {"position_m": port_position, "direction": port_direction},
     }
+
+
+def install_record(versions: dict[str, Any]) -> dict[str, Any]:
+    """How a robot engineer installs what ``reference_step.py`` needs, as exact commands.
+
+    numpy is pinned to the version that wrote the bundle; torch (only for the ``.pt2``
+    programs) to the exact build, from the wheel index that serves builds with its local tag
+    (``2.13.0+cpu``: PyTorch's CPU index; PyPI has no ``+cpu`` builds).
+    """
+    numpy_pin = f"numpy=={versions['numpy']}" if versions.get("numpy") else "numpy"
+    numpy_only = f"python3 -m venv .venv && .venv/bin/pip install {numpy_pin}"
+    record: dict[str, Any] = {
+        "python": f">={REFERENCE_PYTHON}",
+        "numpy": numpy_pin,
+        "torch": None,
+        "torch_index_url": None,
+        "torch_note": None,
+        "commands": [numpy_only],
+        "numpy_only": numpy_only,
+        "check": ".venv/bin/python reference_step.py --check",
+        "check_all": ".venv/bin/python reference_step.py --check --backend all",
+    }
+    build = versions.get("torch")
+    if build:
+        public, _, tag = str(build).partition("+")
+        index = TORCH_INDEX.format(tag=tag) if tag else None
+        where = f"builds tagged +{tag} come from the PyTorch wheel index {index}, not PyPI" \
+            if index else "from PyPI"  # fmt: skip
+        install = f".venv/bin/pip install torch=={public}" + (
+            f" --index-url {index}" if index else ""
+        )
+        record.update(
+            torch=f"torch=={public}",
+            torch_index_url=index,
+            torch_note=f"the {build} build ({where}); needed only for the .pt2 programs "
+            "(reference_step.py --backend torch)",
+            commands=[f"{numpy_only} && {install}"],
+        )
+    return record
 
 
 def check_deployable(config: RunConfig) -> ControllerLayout:
@@ -213,6 +257,8 @@ def bundle_spec(
     *,
     selection: dict[str, Any] | None = None,
     provenance: dict[str, Any] | None = None,
+    test_vectors: dict[str, Any] | None = None,
+    action_values: bool = True,
 ) -> dict[str, Any]:
     """The ``bundle.json`` record of a bundle (see :mod:`evolution.lab.deploy`).
 
@@ -223,9 +269,11 @@ def bundle_spec(
         values_sha256: behaviour name → checksum of the action values it was exported from.
         selection: how the agents were chosen (:meth:`Selection.note` and counts).
         provenance: where the agents came from (run, checkpoint, per-agent fitness).
+        test_vectors: how the bundle's test vectors were recorded
+            (:func:`~evolution.lab.deploy.vectors.record_test_vectors`).
+        action_values: ``behaviours.npz`` holds the tile-coded action values (else the
+            greedy tables only).
     """
-    import torch
-
     from behaviours.inputs import BEHAVIOUR_NAMES
     from cyber_rodent import constants as C
     from cyber_rodent.commands import COMMAND_SET_VERSION, WHEEL_COMMANDS
@@ -242,7 +290,12 @@ def bundle_spec(
         k = finder["proximity_input"]
         finder["controller_input"] = None if k is None else columns.get(k)
     versions = {name: _version(name) for name in RECORDED_DISTRIBUTIONS}
-    versions["torch"] = str(torch.__version__)  # the exact build, e.g. "2.13.0+cpu"
+    try:
+        import torch
+    except ImportError:  # pragma: no cover - a bundle without programs needs no torch
+        versions["torch"] = None
+    else:
+        versions["torch"] = str(torch.__version__)  # the exact build, e.g. "2.13.0+cpu"
     versions["python"] = platform.python_version()
     behaviour_input = "float64 (batch, 2) in [0, 1]; outside [0, 1] or NaN raises RuntimeError"
     return {
@@ -257,6 +310,17 @@ def bundle_spec(
             "note": "torch.export does not promise that another torch version reads these "
             "programs",
         },
+        "install": install_record(versions),
+        "portable": {
+            "spec": "behaviours.json",
+            "arrays": "behaviours.npz",
+            "action_values": action_values,
+            "backends": ["numpy", "table"] if action_values else ["table"],
+            "note": "the behaviours without torch: tile-coded action values and greedy tables "
+            "(numpy arrays) and their indexing in words and pseudo-code, for a port to another "
+            "language; reference_step.py runs them with numpy only",
+        },
+        "test_vectors": test_vectors or {},
         "control": {"dt_s": survival.control_dt, "rate_hz": 1.0 / survival.control_dt},
         "frame": "robot frame: x forward, y left, z up, origin on the floor under the wheel "
         "axle; metres",
@@ -350,4 +414,13 @@ def bundle_spec(
     }
 
 
-__all__ = ["BUNDLE_FORMAT", "LOAD_CALL", "bundle_spec", "check_deployable", "robot_geometry"]
+__all__ = [
+    "BUNDLE_FORMAT",
+    "LOAD_CALL",
+    "REFERENCE_PYTHON",
+    "TORCH_INDEX",
+    "bundle_spec",
+    "check_deployable",
+    "install_record",
+    "robot_geometry",
+]
