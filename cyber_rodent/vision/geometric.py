@@ -45,7 +45,7 @@ import numpy as np
 
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
 from cyber_rodent.vision import kernels
-from cyber_rodent.vision.config import CameraConfig
+from cyber_rodent.vision.config import CameraConfig, camera_for_field
 from cyber_rodent.vision.detections import (
     apply_noise,
     frame_from_detections,
@@ -112,7 +112,8 @@ class GeometricVision:
 
     Args:
         world: the world to observe (bound: every call reads its current ``MjData``).
-        config: the camera; the same config makes the rendered provider comparable.
+        config: the camera (default: :func:`~cyber_rodent.vision.config.camera_for_field` of
+            the world's field); the same config makes the rendered provider comparable.
         rng: generator for the noise model; required only if ``config.noise`` is enabled.
         backend: ``"numba"`` (compiled kernels) or ``"numpy"`` (their references).
 
@@ -134,7 +135,7 @@ class GeometricVision:
         if kernels.UNAVAILABLE_REASON:
             raise ValueError("geometric vision cannot cast rays: " + kernels.UNAVAILABLE_REASON)
         self.world = world
-        self.config = config or CameraConfig()
+        self.config = config or camera_for_field(world.config.field_size)
         if self.config.noise.enabled and rng is None:
             raise ValueError("config.noise is enabled, so pass rng=np.random.Generator")
         self.rng = rng
