@@ -215,6 +215,7 @@ class GeometricVision:
             camera_site=np.asarray(world.camera_site, dtype=np.int64),
             target_geom=self.target_geom,
             target_cls=self.target_cls,
+            ids=np.arange(n_targets, dtype=np.int64),
             own=np.ascontiguousarray(self.target_owner[None, :] == np.arange(n)[:, None]),
             plate=plate,
             half_width=self.half_width,
@@ -520,6 +521,8 @@ def scene_index(world: World, n_targets: int, groups: np.ndarray) -> kernels.Sce
         found=np.zeros(3, dtype=np.int64),
         tried=np.zeros(3, dtype=np.int64),
         done=np.zeros(3, dtype=np.bool_),
+        ring=np.zeros(n_targets, dtype=np.int64),
+        near=np.zeros(m.ngeom, dtype=np.int64),
     )
 
 

@@ -92,6 +92,7 @@ class TargetTable(NamedTuple):
     camera_site: Ints  #: (n,) site of each robot's omni camera
     target_geom: Ints  #: (T,) geom of each target
     target_cls: Ints  #: (T,) colour class of each target (LED, FACE, BATTERY)
+    ids: Ints  #: (T,) 0 .. T - 1: every target, as a list
     own: Bools  #: (n, T) the target belongs to the robot
     plate: Bools  #: (T,) a face plate (seen only from the front)
     half_width: Floats  #: (T,) m
@@ -203,6 +204,8 @@ class SceneIndex(NamedTuple):
     found: Ints  #: (3,) scratch: candidates found per class
     tried: Ints  #: (3,) scratch: candidates tried per class
     done: Bools  #: (3,) scratch: the class's answer is known
+    ring: Ints  #: (T,) scratch: the targets of one ring of cells
+    near: Ints  #: (G,) scratch: the geoms one ray tests
 
 
 class NearestTargets(NamedTuple):
@@ -526,41 +529,48 @@ def _sample(targets: TargetTable, camera: CameraModel, f: FrontBuffers, i: int, 
 @jit_inline
 def _place(
     targets: TargetTable, camera: CameraModel, led_on: Bools, pack_active: Bools,
-    f: FrontBuffers, i: int, t: int,
-) -> bool:  # fmt: skip
-    """Target ``t`` in robot ``i``'s camera frame (``diff``, ``local``, ``bearing``,
-    ``distance``), and whether it could be seen if it were large enough: in range, not the
-    robot's own, a lit LED, an active pack, a plate whose front or side the camera faces."""
+    f: FrontBuffers, i: int, listed: Ints, count: int,
+) -> None:  # fmt: skip
+    """Targets ``listed[:count]`` in robot ``i``'s camera frame (``diff``, ``local``,
+    ``bearing``, ``distance``), and in ``candidate`` whether each could be seen if it were
+    large enough: in range, not the robot's own, a lit LED, an active pack, a plate whose
+    front or side the camera faces.
+
+    A list, not one target per call: a compiled helper's named buffers are counted as
+    references at every call, which costs more than placing one target.
+    """
     r = f.rot[i]
     n = f.cam.shape[0]
     first_pack = f.centre.shape[0] - pack_active.shape[0]
-    d0 = f.centre[t, 0] - f.cam[i, 0]
-    d1 = f.centre[t, 1] - f.cam[i, 1]
-    d2 = f.centre[t, 2] - f.cam[i, 2]
-    f.diff[i, t, 0] = d0
-    f.diff[i, t, 1] = d1
-    f.diff[i, t, 2] = d2
-    # Camera frame: x_j = sum_k R_kj d_k.
-    l0 = d0 * r[0] + d1 * r[3] + d2 * r[6]
-    l1 = d0 * r[1] + d1 * r[4] + d2 * r[7]
-    f.local[i, t, 0] = l0
-    f.local[i, t, 1] = l1
-    f.local[i, t, 2] = d0 * r[2] + d1 * r[5] + d2 * r[8]
-    dist = math.hypot(l0, l1)
-    f.bearing[i, t] = math.atan2(l1, l0)
-    f.distance[i, t] = dist
-    ok: bool = dist <= camera.max_range and not targets.own[i, t]
-    if t < n and not led_on[t]:
-        ok = False  # a dark LED is not a green target
-    if t >= first_pack and not pack_active[t - first_pack]:
-        ok = False  # an inactive pack is dark: not a blue target
-    if ok and targets.plate[t]:  # a plate shows its front, or its side edge-on
-        g = f.gmat[t]  # its x axis is the plate's normal, its y axis its width
-        x_cam = -(d0 * g[0] + d1 * g[3] + d2 * g[6])
-        y_cam = -(d0 * g[1] + d1 * g[4] + d2 * g[7])
-        in_front = x_cam > targets.depth_front[t]
-        ok = in_front or _edge_on(targets, t, x_cam, y_cam)
-    return ok
+    for k in range(count):
+        t = listed[k]
+        d0 = f.centre[t, 0] - f.cam[i, 0]
+        d1 = f.centre[t, 1] - f.cam[i, 1]
+        d2 = f.centre[t, 2] - f.cam[i, 2]
+        f.diff[i, t, 0] = d0
+        f.diff[i, t, 1] = d1
+        f.diff[i, t, 2] = d2
+        # Camera frame: x_j = sum_k R_kj d_k.
+        l0 = d0 * r[0] + d1 * r[3] + d2 * r[6]
+        l1 = d0 * r[1] + d1 * r[4] + d2 * r[7]
+        f.local[i, t, 0] = l0
+        f.local[i, t, 1] = l1
+        f.local[i, t, 2] = d0 * r[2] + d1 * r[5] + d2 * r[8]
+        dist = math.hypot(l0, l1)
+        f.bearing[i, t] = math.atan2(l1, l0)
+        f.distance[i, t] = dist
+        ok = dist <= camera.max_range and not targets.own[i, t]
+        if t < n and not led_on[t]:
+            ok = False  # a dark LED is not a green target
+        if t >= first_pack and not pack_active[t - first_pack]:
+            ok = False  # an inactive pack is dark: not a blue target
+        if ok and targets.plate[t]:  # a plate shows its front, or its side edge-on
+            g = f.gmat[t]  # its x axis is the plate's normal, its y axis its width
+            x_cam = -(d0 * g[0] + d1 * g[3] + d2 * g[6])
+            y_cam = -(d0 * g[1] + d1 * g[4] + d2 * g[7])
+            in_front = x_cam > targets.depth_front[t]
+            ok = in_front or _edge_on(targets, t, x_cam, y_cam)
+        f.candidate[i, t] = ok
 
 
 @jit
@@ -583,13 +593,11 @@ def front(
     n = f.cam.shape[0]
     n_t = f.centre.shape[0]
     for i in range(n):
-        for t in range(n_t):
-            ok = _place(targets, camera, led_on, pack_active, f, i, t)
-            if every_target:
-                area = _project(targets, camera, f, i, t)
-                ok = ok and area >= targets.min_area[t]
-            f.candidate[i, t] = ok
+        _place(targets, camera, led_on, pack_active, f, i, targets.ids, n_t)
         if every_target:
+            for t in range(n_t):
+                area = _project(targets, camera, f, i, t)
+                f.candidate[i, t] = f.candidate[i, t] and area >= targets.min_area[t]
             for t in range(n_t):
                 candidate = f.candidate[i, t]
                 for s in range(targets.sample_start[t], targets.sample_end[t]):
@@ -758,91 +766,51 @@ def _bin(grid: UniformGrid, positions: Floats) -> None:
 
 
 @jit_inline
-def _segment_meets_sphere(
-    p: Floats, v: Floats, centre: Floats, radius: float
-) -> bool:
-    """Whether the segment p + x v, x in [0, 1], comes within ``radius`` of ``centre``."""
-    c0, c1, c2 = centre[0] - p[0], centre[1] - p[1], centre[2] - p[2]
-    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
-    x = min(max((c0 * v[0] + c1 * v[1] + c2 * v[2]) / vv, 0.0), 1.0)
-    q0, q1, q2 = x * v[0] - c0, x * v[1] - c1, x * v[2] - c2
-    meets: bool = q0 * q0 + q1 * q1 + q2 * q2 <= radius * radius
-    return meets
-
-
-@jit_inline
-def _ray_geom(
-    rays: RayCulling, poses: MujocoPoses, g: int, exclude: int, pnt: np.int64, vec: np.int64
-) -> float:
-    """``mj_ray``'s own test of geom ``g``: -1 if it eliminates the geom (the excluded body,
-    a transparent geom or material, a group the rays do not see), else ``mju_rayGeom``'s
-    distance (-1: missed), or -2 if the geom is no primitive (only ``mj_ray`` handles it)."""
-    if rays.geom_bodyid[g] == exclude or not rays.in_group[g]:
-        return -1.0
-    mat = rays.geom_matid[g]
-    alpha = rays.geom_rgba[g, 3] if mat < 0 else rays.mat_rgba[mat, 3]
-    if alpha == 0:
-        return -1.0
-    if not rays.primitive[g]:
-        return -2.0
-    base_pos = np.int64(poses.geom_xpos.ctypes.data)
-    base_mat = np.int64(poses.geom_xmat.ctypes.data)
-    base_size = np.int64(rays.geom_size.ctypes.data)
-    row, frame = np.int64(_ROW), np.int64(3 * _ROW)
-    distance: float = _MJ_RAY_GEOM(
-        base_pos + g * row, base_mat + g * frame, base_size + g * row, pnt, vec,
-        np.int32(rays.geom_type[g]), np.int64(0),
-    )  # fmt: skip
-    return distance
-
-
-@jit_inline
 def first_hit(
-    poses: MujocoPoses, index: SceneIndex, groups: npt.NDArray[np.uint8], exclude: int,
+    poses: MujocoPoses, grids: SceneIndex, groups: npt.NDArray[np.uint8], exclude: int,
     p: Floats, v: Floats, pnt: np.int64, vec: np.int64, hit: npt.NDArray[np.int32],
 ) -> int:  # fmt: skip
-    """The geom that ``mj_ray`` hits first on the ray p + x v (``pnt``, ``vec``: their
-    addresses), ignoring body ``exclude``: the same geom, found by testing only the geoms
-    near the segment x in [0, 1].
+    """The geom that ``mj_ray`` hits first on the ray p + x v (``pnt``, ``vec``: the
+    addresses of ``p`` and ``v``), ignoring body ``exclude``: the same geom, found by testing
+    only the geoms near the segment x in [0, 1]. Also written to ``hit[0]``.
 
-    ``mj_ray`` returns the nearest hit of every geom it does not eliminate, ties to the lowest
-    geom id. Here the candidates are the geoms every ray tests (``rays.always``) and the binned
-    geoms whose bounding sphere (plus :data:`CULL_MARGIN`) meets the segment, found in the grid
-    cells the segment passes within ``rays.reach`` of. A geom whose bounding sphere misses the
-    segment has no surface point on it, so if the nearest candidate hit lies on the segment
-    (x <= 1) no other geom can be hit before it: that is ``mj_ray``'s answer. The rays of the
-    geometric vision aim at a point inside their target, so they always hit something on the
-    segment; if not (or a candidate is no primitive geom), ``mj_ray`` itself answers. The
-    geom is also written to ``hit[0]``.
+    ``mj_ray`` returns the nearest hit of every geom it does not eliminate (the excluded body,
+    transparent geoms or materials, groups not in ``groups``), each intersected by
+    ``mju_rayGeom``, ties to the lowest geom id. Here the geoms tested are those every ray
+    tests (``rays.always``) and the binned geoms whose bounding sphere (plus
+    :data:`CULL_MARGIN`) meets the segment, found in the grid cells the segment passes within
+    ``rays.reach`` of. A geom whose bounding sphere misses the segment has no surface point on
+    it, so if the nearest hit found lies on the segment (x <= 1) no other geom can be hit
+    before it, and it is ``mj_ray``'s answer. The rays of the geometric vision aim at a point
+    inside their target, so they hit something on the segment; if not (or a geom found is no
+    primitive), ``mj_ray`` itself answers.
     """
-    rays, grid = index.rays, index.geoms
-    best, best_geom, fallback = -1.0, -1, False
+    rays, grid = grids.rays, grids.geoms
+    near = grids.near
+    count = 0
     for k in range(rays.always.shape[0]):
-        g = rays.always[k]
-        x = _ray_geom(rays, poses, g, exclude, pnt, vec)
-        if x == -2.0:
-            fallback = True
-        elif x >= 0.0 and (best < 0.0 or x < best or (x == best and g < best_geom)):
-            best, best_geom = x, g
+        near[count] = rays.always[k]
+        count += 1
     reach = rays.reach
+    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
     x0, x1 = p[0], p[0] + v[0]
     first, last = _grid_cell(grid, min(x0, x1) - reach), _grid_cell(grid, max(x0, x1) + reach)
     for column in range(first, last + 1):
         # The part of the segment within reach of this column (an edge column holds
         # everything beyond the grid too).
-        low = -math.inf if column == 0 else grid.origin + column * grid.cell - reach
-        high = math.inf
+        low, high = -math.inf, math.inf
+        if column > 0:
+            low = grid.origin + column * grid.cell - reach
         if column < grid.side - 1:
             high = grid.origin + (column + 1) * grid.cell + reach
+        a, b = 0.0, 1.0
         if v[0] != 0.0:
             a, b = (low - x0) / v[0], (high - x0) / v[0]
             a, b = max(min(a, b), 0.0), min(max(a, b), 1.0)
             if a > b:
                 continue
-        else:
-            if not low <= x0 <= high:
-                continue
-            a, b = 0.0, 1.0
+        elif not low <= x0 <= high:
+            continue
         ya, yb = p[1] + a * v[1], p[1] + b * v[1]
         bottom = _grid_cell(grid, min(ya, yb) - reach)
         top = _grid_cell(grid, max(ya, yb) + reach)
@@ -850,14 +818,39 @@ def first_hit(
             c = column + grid.side * row
             for slot in range(grid.start[c], grid.start[c + 1]):
                 g = grid.items[slot]
+                # Does the segment come within the geom's bounding sphere?
+                c0 = poses.geom_xpos[g, 0] - p[0]
+                c1 = poses.geom_xpos[g, 1] - p[1]
+                c2 = poses.geom_xpos[g, 2] - p[2]
+                x = min(max((c0 * v[0] + c1 * v[1] + c2 * v[2]) / vv, 0.0), 1.0)
+                q0, q1, q2 = x * v[0] - c0, x * v[1] - c1, x * v[2] - c2
                 radius = rays.geom_rbound[g] + CULL_MARGIN
-                if not _segment_meets_sphere(p, v, poses.geom_xpos[g], radius):
-                    continue
-                x = _ray_geom(rays, poses, g, exclude, pnt, vec)
-                if x == -2.0:
-                    fallback = True
-                elif x >= 0.0 and (best < 0.0 or x < best or (x == best and g < best_geom)):
-                    best, best_geom = x, g
+                if q0 * q0 + q1 * q1 + q2 * q2 <= radius * radius:
+                    near[count] = g
+                    count += 1
+    # mj_ray's own test of each geom found, nearest hit first, ties to the lower geom id.
+    base_pos = np.int64(poses.geom_xpos.ctypes.data)
+    base_mat = np.int64(poses.geom_xmat.ctypes.data)
+    base_size = np.int64(rays.geom_size.ctypes.data)
+    row_size, frame_size = np.int64(_ROW), np.int64(3 * _ROW)
+    best, best_geom, fallback = -1.0, -1, False
+    for k in range(count):
+        g = near[k]
+        if rays.geom_bodyid[g] == exclude or not rays.in_group[g]:
+            continue
+        mat = rays.geom_matid[g]
+        alpha = rays.geom_rgba[g, 3] if mat < 0 else rays.mat_rgba[mat, 3]
+        if alpha == 0:
+            continue
+        if not rays.primitive[g]:
+            fallback = True
+            continue
+        x = _MJ_RAY_GEOM(
+            base_pos + g * row_size, base_mat + g * frame_size, base_size + g * row_size, pnt,
+            vec, np.int32(rays.geom_type[g]), np.int64(0),
+        )  # fmt: skip
+        if x >= 0.0 and (best < 0.0 or x < best or (x == best and g < best_geom)):
+            best, best_geom = x, g
     if fallback or best < 0.0 or best > 1.0:
         _MJ_RAY(
             poses.model_address, poses.data_address, pnt, vec, np.int64(groups.ctypes.data),
@@ -870,89 +863,6 @@ def first_hit(
 
 # --- nearest -----------------------------------------------------------------------------------
 @jit_inline
-def _visible(
-    scene: GeometricScene, i: int, t: int, cam_ptr: np.int64, rays_ptr: np.int64
-) -> bool:
-    """Whether robot ``i`` sees candidate ``t``: its projected size, then its samples, then
-    rays at them until its visibility is certain either way (``full * hits / samples >=
-    min_area``)."""
-    targets, camera, f = scene.targets, scene.camera, scene.front
-    full, need = _project(targets, camera, f, i, t), targets.min_area[t]
-    if not full >= need:  # too small to be seen even in full
-        f.candidate[i, t] = False
-        return False
-    n_s = f.rays.shape[1]
-    row = np.int64(_ROW)
-    step = targets.inv_samples[t]
-    first, end = targets.sample_start[t], targets.sample_end[t]
-    left = 0
-    for s in range(first, end):
-        _sample(targets, camera, f, i, s)
-        left += f.sample_ok[i, s]
-    hits = 0
-    seen: bool = full * (hits * step) >= need
-    exclude = targets.exclude_body[i]
-    while not seen and left > 0 and full * ((hits + left) * step) >= need:
-        s = first
-        while not f.sample_ok[i, s]:
-            s += 1
-        first = s + 1
-        left -= 1
-        hit = first_hit(
-            scene.poses, scene.grids, targets.geom_groups, exclude, f.cam[i], f.rays[i, s],
-            cam_ptr + i * row, rays_ptr + (i * n_s + s) * row, f.ray_geom,
-        )  # fmt: skip
-        if hit == targets.sample_geom[s]:
-            hits += 1
-            seen = full * (hits * step) >= need
-    return seen
-
-
-@jit_inline
-def _collect_cell(scene: GeometricScene, i: int, c: int) -> None:
-    """Place the targets of grid cell ``c`` in robot ``i``'s frame (those of classes still
-    open), adding the candidates to their class's list in order of distance, then index."""
-    targets, f, index = scene.targets, scene.front, scene.grids
-    grid = index.targets
-    for slot in range(grid.start[c], grid.start[c + 1]):
-        t = grid.items[slot]
-        cls = targets.target_cls[t]
-        if index.done[cls]:
-            continue
-        ok = _place(targets, scene.camera, scene.led_on, scene.pack_active, f, i, t)
-        f.candidate[i, t] = ok
-        if not ok:
-            continue
-        d = f.distance[i, t]
-        p = index.found[cls]
-        while p > index.tried[cls]:
-            u = f.order[cls, p - 1]
-            if f.distance[i, u] < d or (f.distance[i, u] == d and u < t):
-                break
-            f.order[cls, p] = u
-            p -= 1
-        f.order[cls, p] = t
-        index.found[cls] += 1
-
-
-@jit_inline
-def _collect(scene: GeometricScene, i: int, cx: int, cy: int, ring: int) -> None:
-    """:func:`_collect_cell` for every cell of ring ``ring`` around cell (cx, cy): the cells
-    ``ring`` columns or rows away, within the grid."""
-    side = scene.grids.targets.side
-    left, right = max(cx - ring, 0), min(cx + ring, side - 1)
-    for row in range(max(cy - ring, 0), min(cy + ring, side - 1) + 1):
-        if row == cy - ring or row == cy + ring:  # a whole row of the ring
-            for column in range(left, right + 1):
-                _collect_cell(scene, i, column + side * row)
-        else:  # its two ends
-            if cx - ring >= 0:
-                _collect_cell(scene, i, cx - ring + side * row)
-            if ring > 0 and cx + ring < side:
-                _collect_cell(scene, i, cx + ring + side * row)
-
-
-@jit_inline
 def nearest(scene: GeometricScene, out: NearestTargets) -> None:
     """:func:`gather`, then each robot's nearest visible target of each class.
 
@@ -961,63 +871,134 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
     when it is reached, and the rays stop as soon as its visibility is certain either way.
 
     Targets are reached through a uniform grid (``scene.grids.targets``), ring of cells by ring
-    around the robot's cell. A target in a cell k + 1 or more rings out lies more than k cells
-    away along x or y, so its horizontal distance h exceeds k * cell; in the camera's frame,
-    tilted by theta from the vertical, its distance is at least h cos(theta) - |dz|
-    sin(theta), dz its height above the camera. So once ring k is placed, every candidate up to
-    k * cell * cos(theta) - max|dz| sin(theta) (less :data:`CULL_MARGIN`) is certainly nearer than
-    any target not placed yet, and is tried; the search ends at the first visible candidate,
-    when that bound passes the camera's range, or when the rings cover the grid. The targets
-    tried and their order are those of trying every candidate nearest first: the answer is
-    the same. In the paper's field the grid is 2 x 2 cells, so every target is placed first.
+    around the robot's cell (rings 0 and 1 at once). A target in a cell k + 1 or more rings out
+    lies more than k cells away along x or y, so its horizontal distance h exceeds k * cell; in
+    the camera's frame, tilted by theta from the vertical, its distance is at least
+    h cos(theta) - |dz| sin(theta), dz its height above the camera. So once ring k is placed,
+    every candidate up to k * cell * cos(theta) - max|dz| sin(theta) (less
+    :data:`CULL_MARGIN`) is certainly nearer than any target not placed yet, and is tried; the
+    search ends at the first visible candidate, when that bound passes the camera's range, or
+    when the rings cover the grid. The targets tried and their order are those of trying every
+    candidate nearest first: the answer is the same. In the paper's field the grid is 2 x 2
+    cells, so every target is placed before any is tried. The rays are :func:`first_hit`'s.
+
+    Named buffers are counted as references at every call of a compiled helper, which costs
+    more than the work of one target: the helpers here take lists (:func:`_place`) or run
+    once per candidate or ray.
     """
-    poses, targets, f, index = scene.poses, scene.targets, scene.front, scene.grids
+    poses, targets, f, grids = scene.poses, scene.targets, scene.front, scene.grids
+    camera = scene.camera
     gather(poses, targets, f)
-    _bin(index.targets, f.centre)
-    _bin(index.geoms, poses.geom_xpos)
+    _bin(grids.targets, f.centre)
+    _bin(grids.geoms, poses.geom_xpos)
     n = f.cam.shape[0]
     n_t = f.centre.shape[0]
+    n_s = f.rays.shape[1]
     z_low, z_high = math.inf, -math.inf
     for t in range(n_t):
         z_low, z_high = min(z_low, f.centre[t, 2]), max(z_high, f.centre[t, 2])
     # mj_ray reads 3 doubles at each point/direction address. Addresses are signed 64-bit:
     # numba would turn uintp + int64 into a float.
     cam_ptr, rays_ptr = np.int64(f.cam.ctypes.data), np.int64(f.rays.ctypes.data)
-    grid = index.targets
+    row_size = np.int64(_ROW)
+    grid = grids.targets
     side = grid.side
+    ring_list, found, tried, done = grids.ring, grids.found, grids.tried, grids.done
+    order = f.order
+    distance = f.distance
     for i in range(n):
         for c in range(3):
             out.visible[i, c] = False
             out.distance[i, c] = np.inf
             out.bearing[i, c] = 0.0
-            index.found[c] = 0
-            index.tried[c] = 0
-            index.done[c] = targets.class_count[c] == 0
+            found[c] = 0
+            tried[c] = 0
+            done[c] = targets.class_count[c] == 0
         cx, cy = _grid_cell(grid, f.cam[i, 0]), _grid_cell(grid, f.cam[i, 1])
         cos_tilt = f.rot[i, 8]
         sin_tilt = math.sqrt(max(1.0 - cos_tilt * cos_tilt, 0.0))
         dz = max(z_high - f.cam[i, 2], f.cam[i, 2] - z_low, 0.0)
         rings = max(cx, side - 1 - cx, cy, side - 1 - cy)
-        ring = 0
-        while not (index.done[0] and index.done[1] and index.done[2]):
-            _collect(scene, i, cx, cy, ring)
+        exclude = targets.exclude_body[i]
+        # Ring 0 alone bounds nothing (its bound is below 0): the search starts with rings 0
+        # and 1 together.
+        ring = 1
+        while not (done[0] and done[1] and done[2]):
+            # The targets of the ring's cells (rows ``ring`` away whole, the rows between
+            # only at their two ends; the first time, every cell within 1), of the classes
+            # still open.
+            listed = 0
+            for row in range(max(cy - ring, 0), min(cy + ring, side - 1) + 1):
+                whole = ring == 1 or row == cy - ring or row == cy + ring
+                for column in range(max(cx - ring, 0), min(cx + ring, side - 1) + 1):
+                    if not whole and column != cx - ring and column != cx + ring:
+                        continue
+                    c = column + side * row
+                    for slot in range(grid.start[c], grid.start[c + 1]):
+                        t = grid.items[slot]
+                        if not done[targets.target_cls[t]]:
+                            ring_list[listed] = t
+                            listed += 1
+            _place(targets, camera, scene.led_on, scene.pack_active, f, i, ring_list, listed)
+            # Each candidate joins its class's list, by distance then index.
+            for k in range(listed):
+                t = ring_list[k]
+                if not f.candidate[i, t]:
+                    continue
+                cls = targets.target_cls[t]
+                d = distance[i, t]
+                p = found[cls]
+                while p > tried[cls]:
+                    u = order[cls, p - 1]
+                    if distance[i, u] < d or (distance[i, u] == d and u < t):
+                        break
+                    order[cls, p] = u
+                    p -= 1
+                order[cls, p] = t
+                found[cls] += 1
             everything = ring >= rings
             bound = -math.inf
             if cos_tilt > 0.0:
                 bound = ring * grid.cell * cos_tilt - dz * sin_tilt - CULL_MARGIN
             for c in range(3):
-                while not index.done[c] and index.tried[c] < index.found[c]:
-                    t = f.order[c, index.tried[c]]
-                    if not (everything or f.distance[i, t] <= bound):
+                while not done[c] and tried[c] < found[c]:
+                    t = order[c, tried[c]]
+                    if not (everything or distance[i, t] <= bound):
                         break
-                    index.tried[c] += 1
-                    if _visible(scene, i, t, cam_ptr, rays_ptr):
+                    tried[c] += 1
+                    full, need = _project(targets, camera, f, i, t), targets.min_area[t]
+                    if not full >= need:  # too small to be seen even in full
+                        f.candidate[i, t] = False
+                        continue
+                    step = targets.inv_samples[t]
+                    first, end = targets.sample_start[t], targets.sample_end[t]
+                    left = 0
+                    for s in range(first, end):
+                        _sample(targets, camera, f, i, s)
+                        left += f.sample_ok[i, s]
+                    hits = 0
+                    seen = full * (hits * step) >= need
+                    while not seen and left > 0 and full * ((hits + left) * step) >= need:
+                        s = first
+                        while not f.sample_ok[i, s]:
+                            s += 1
+                        first = s + 1
+                        left -= 1
+                        hit = first_hit(
+                            poses, grids, targets.geom_groups, exclude, f.cam[i], f.rays[i, s],
+                            cam_ptr + i * row_size, rays_ptr + (i * n_s + s) * row_size,
+                            f.ray_geom,
+                        )  # fmt: skip
+                        if hit == targets.sample_geom[s]:
+                            hits += 1
+                            seen = full * (hits * step) >= need
+                    if seen:
                         out.visible[i, c] = True
-                        out.distance[i, c] = f.distance[i, t]
+                        out.distance[i, c] = distance[i, t]
                         out.bearing[i, c] = f.bearing[i, t]
-                        index.done[c] = True
-                if everything or bound > scene.camera.max_range:
-                    index.done[c] = True
+                        done[c] = True
+                if everything or bound > camera.max_range:
+                    done[c] = True
             ring += 1
 
 
