@@ -20,6 +20,7 @@ from cyber_rodent import constants as C
 from cyber_rodent.vision import BATTERY, FACE, LED, geometric
 from cyber_rodent.vision import kernels as K
 from cyber_rodent.vision.geometric import (
+    CULL_FROM_GEOMS,
     RAY_CELL,
     SEARCH_CELL,
     VISIBLE_GROUPS,
@@ -45,14 +46,13 @@ def providers(colony: World) -> tuple[GeometricVision, GeometricVision]:
 
 @pytest.fixture(scope="module")
 def one_cell(colony: World) -> GeometricVision:
-    """The compiled provider with grids of one cell: every target placed and sorted before any
-    is tried, every ray testing every geom whose bounding sphere meets it (as before the
-    grids)."""
+    """The compiled provider as before the grids: a search grid of one cell (every target
+    placed and sorted before any is tried) and rays cast by ``mj_ray`` over every geom."""
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(geometric, "SEARCH_CELL", 1000.0)
-        patch.setattr(geometric, "RAY_CELL", 1000.0)
+        patch.setattr(geometric, "CULL_FROM_GEOMS", 10**9)
         vision = GeometricVision(colony, backend="numba")
-    assert vision.grids.targets.side == vision.grids.geoms.side == 1
+    assert vision.grids.targets.side == 1 and not vision.grids.rays.cull
     return vision
 
 
@@ -168,6 +168,7 @@ def test_culled_rays_hit_what_mj_ray_hits(
     colony: World, providers: tuple[GeometricVision, GeometricVision]
 ) -> None:
     compiled, _ = providers
+    assert compiled.grids.rays.cull  # 781 geoms: the search's rays are culled
     rng = np.random.default_rng(4)
     m, d = colony.model, colony.data
     geom = np.zeros(1, dtype=np.int32)
@@ -201,9 +202,15 @@ def test_the_paper_field_is_one_search_ring() -> None:
     vision = GeometricVision(World(WorldConfig()))
     assert SEARCH_CELL == C.FIELD_SIZE / 2 and vision.grids.targets.side == 2
     assert vision.grids.geoms.side == math.ceil(2.3 / RAY_CELL) == 5
+    # 67 geoms: mj_ray's scan of every geom costs no more than culling; the same answer.
+    assert world_geoms(vision) == 67 < CULL_FROM_GEOMS and not vision.grids.rays.cull
     vision.front.distance.fill(np.nan)
     vision.nearest_targets()
     assert not np.isnan(vision.front.distance).any()
+
+
+def world_geoms(vision: GeometricVision) -> int:
+    return int(vision.world.model.ngeom)
 
 
 def test_uniform_grid_bins_by_hand() -> None:

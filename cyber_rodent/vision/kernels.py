@@ -193,6 +193,7 @@ class RayCulling(NamedTuple):
     primitive: Bools  #: (G,) a type ``mju_rayGeom`` intersects (:data:`PRIMITIVE_GEOMS`)
     always: Ints  #: geoms every ray tests (planes, which are unbounded, and very large geoms)
     reach: float  #: m, the largest bounding radius of the binned geoms, plus a margin
+    cull: bool  #: use :func:`first_hit`; False: ``mj_ray`` (as fast where geoms are few)
 
 
 class SceneIndex(NamedTuple):
@@ -734,13 +735,15 @@ CULL_MARGIN = 1e-6
 
 
 @jit_inline
-def _grid_cell(grid: UniformGrid, x: float) -> int:
-    """The grid column (or row) of coordinate ``x``, clamped to the grid (NaN: the first)."""
-    k = (x - grid.origin) / grid.cell
+def _grid_cell(origin: float, cell: float, side: int, x: float) -> int:
+    """The column (or row) of coordinate ``x`` in a grid of ``side`` cells of ``cell`` from
+    ``origin``, clamped to the grid (NaN: the first). Scalars, not the grid: a helper's named
+    buffers are counted as references at every call."""
+    k = (x - origin) / cell
     if not k >= 0.0:
         return 0
-    if k >= grid.side:
-        return grid.side - 1
+    if k >= side:
+        return side - 1
     return int(k)
 
 
@@ -748,19 +751,21 @@ def _grid_cell(grid: UniformGrid, x: float) -> int:
 def _bin(grid: UniformGrid, positions: Floats) -> None:
     """Bin ``grid.members`` by their (x, y) in ``positions`` (a counting sort: the items of a
     cell stay in ascending order)."""
-    side = grid.side
+    origin, cell, side = grid.origin, grid.cell, grid.side
     for c in range(side * side + 1):
         grid.start[c] = 0
     for k in range(grid.members.shape[0]):
         item = grid.members[k]
-        c = _grid_cell(grid, positions[item, 0]) + side * _grid_cell(grid, positions[item, 1])
+        column = _grid_cell(origin, cell, side, positions[item, 0])
+        c = column + side * _grid_cell(origin, cell, side, positions[item, 1])
         grid.start[c + 1] += 1
     for c in range(side * side):
         grid.start[c + 1] += grid.start[c]
         grid.cursor[c] = grid.start[c]
     for k in range(grid.members.shape[0]):
         item = grid.members[k]
-        c = _grid_cell(grid, positions[item, 0]) + side * _grid_cell(grid, positions[item, 1])
+        column = _grid_cell(origin, cell, side, positions[item, 0])
+        c = column + side * _grid_cell(origin, cell, side, positions[item, 1])
         grid.items[grid.cursor[c]] = item
         grid.cursor[c] += 1
 
@@ -787,6 +792,7 @@ def first_hit(
     """
     rays, grid = grids.rays, grids.geoms
     near = grids.near
+    origin, cell, side = grid.origin, grid.cell, grid.side
     count = 0
     for k in range(rays.always.shape[0]):
         near[count] = rays.always[k]
@@ -794,15 +800,16 @@ def first_hit(
     reach = rays.reach
     vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
     x0, x1 = p[0], p[0] + v[0]
-    first, last = _grid_cell(grid, min(x0, x1) - reach), _grid_cell(grid, max(x0, x1) + reach)
+    first = _grid_cell(origin, cell, side, min(x0, x1) - reach)
+    last = _grid_cell(origin, cell, side, max(x0, x1) + reach)
     for column in range(first, last + 1):
         # The part of the segment within reach of this column (an edge column holds
         # everything beyond the grid too).
         low, high = -math.inf, math.inf
         if column > 0:
-            low = grid.origin + column * grid.cell - reach
-        if column < grid.side - 1:
-            high = grid.origin + (column + 1) * grid.cell + reach
+            low = origin + column * cell - reach
+        if column < side - 1:
+            high = origin + (column + 1) * cell + reach
         a, b = 0.0, 1.0
         if v[0] != 0.0:
             a, b = (low - x0) / v[0], (high - x0) / v[0]
@@ -812,10 +819,10 @@ def first_hit(
         elif not low <= x0 <= high:
             continue
         ya, yb = p[1] + a * v[1], p[1] + b * v[1]
-        bottom = _grid_cell(grid, min(ya, yb) - reach)
-        top = _grid_cell(grid, max(ya, yb) + reach)
+        bottom = _grid_cell(origin, cell, side, min(ya, yb) - reach)
+        top = _grid_cell(origin, cell, side, max(ya, yb) + reach)
         for row in range(bottom, top + 1):
-            c = column + grid.side * row
+            c = column + side * row
             for slot in range(grid.start[c], grid.start[c + 1]):
                 g = grid.items[slot]
                 # Does the segment come within the geom's bounding sphere?
@@ -880,7 +887,8 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
     search ends at the first visible candidate, when that bound passes the camera's range, or
     when the rings cover the grid. The targets tried and their order are those of trying every
     candidate nearest first: the answer is the same. In the paper's field the grid is 2 x 2
-    cells, so every target is placed before any is tried. The rays are :func:`first_hit`'s.
+    cells, so every target is placed before any is tried. The rays are :func:`first_hit`'s
+    where the world has many geoms (``grids.rays.cull``), else ``mj_ray``'s: the same geom.
 
     Named buffers are counted as references at every call of a compiled helper, which costs
     more than the work of one target: the helpers here take lists (:func:`_place`) or run
@@ -900,7 +908,10 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
     # mj_ray reads 3 doubles at each point/direction address. Addresses are signed 64-bit:
     # numba would turn uintp + int64 into a float.
     cam_ptr, rays_ptr = np.int64(f.cam.ctypes.data), np.int64(f.rays.ctypes.data)
+    groups_ptr = np.int64(targets.geom_groups.ctypes.data)
+    geom_ptr = np.int64(f.ray_geom.ctypes.data)
     row_size = np.int64(_ROW)
+    cull = grids.rays.cull
     grid = grids.targets
     side = grid.side
     ring_list, found, tried, done = grids.ring, grids.found, grids.tried, grids.done
@@ -914,7 +925,8 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
             found[c] = 0
             tried[c] = 0
             done[c] = targets.class_count[c] == 0
-        cx, cy = _grid_cell(grid, f.cam[i, 0]), _grid_cell(grid, f.cam[i, 1])
+        cx = _grid_cell(grid.origin, grid.cell, side, f.cam[i, 0])
+        cy = _grid_cell(grid.origin, grid.cell, side, f.cam[i, 1])
         cos_tilt = f.rot[i, 8]
         sin_tilt = math.sqrt(max(1.0 - cos_tilt * cos_tilt, 0.0))
         dz = max(z_high - f.cam[i, 2], f.cam[i, 2] - z_low, 0.0)
@@ -984,11 +996,18 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
                             s += 1
                         first = s + 1
                         left -= 1
-                        hit = first_hit(
-                            poses, grids, targets.geom_groups, exclude, f.cam[i], f.rays[i, s],
-                            cam_ptr + i * row_size, rays_ptr + (i * n_s + s) * row_size,
-                            f.ray_geom,
-                        )  # fmt: skip
+                        pnt, vec = cam_ptr + i * row_size, rays_ptr + (i * n_s + s) * row_size
+                        if cull:
+                            hit = first_hit(
+                                poses, grids, targets.geom_groups, exclude, f.cam[i],
+                                f.rays[i, s], pnt, vec, f.ray_geom,
+                            )  # fmt: skip
+                        else:
+                            _MJ_RAY(
+                                poses.model_address, poses.data_address, pnt, vec, groups_ptr,
+                                np.uint8(1), np.int32(exclude), geom_ptr, np.int64(0),
+                            )  # fmt: skip
+                            hit = f.ray_geom[0]
                         if hit == targets.sample_geom[s]:
                             hits += 1
                             seen = full * (hits * step) >= need
