@@ -88,6 +88,16 @@ def _int_arg(name: str) -> Callable[[str], int]:
     return parse
 
 
+def _float_arg(name: str) -> Callable[[str], float]:
+    def parse(text: str) -> float:
+        try:
+            return float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+
+    return parse
+
+
 def _cmd_snapshot(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -96,13 +106,14 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
         FieldRenderer,
         annotate_world,
         check_writable_output,
+        default_image_size,
         draw_caption,
         write_png,
     )
     from cyber_rodent.world import World, WorldConfig
 
     check_writable_output(args.out)  # fail before any expensive work
-    config = WorldConfig(n_robots=args.robots, n_packs=args.packs)
+    config = WorldConfig(field_size=args.field_size, n_robots=args.robots, n_packs=args.packs)
     world = World(config, np.random.default_rng(args.seed))
     if args.robot is not None and not 0 <= args.robot < config.n_robots:
         raise CliError(f"--robot must be in [0, {config.n_robots - 1}], got {args.robot}")
@@ -114,7 +125,8 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
         out = save_omni_png(world, args.robot, args.out)
     else:
         background = None if args.plain else BACKGROUND_RGB
-        with FieldRenderer(world, args.size, args.size, background=background) as renderer:
+        size = default_image_size(config.field_size) if args.size is None else args.size
+        with FieldRenderer(world, size, size, background=background) as renderer:
             if args.robot is not None:
                 image = renderer.robot_view(args.robot)
                 if not args.plain:
@@ -550,7 +562,20 @@ def build_parser(command: str | None = None) -> CliParser:
     snap.add_argument("--seed", type=_int_arg("--seed"), default=0, help="placement seed")
     snap.add_argument("--robots", type=_int_arg("--robots"), default=4, help="number of robots")
     snap.add_argument("--packs", type=_int_arg("--packs"), default=5, help="number of packs")
-    snap.add_argument("--size", type=_int_arg("--size"), default=640, help="image side in px")
+    snap.add_argument(
+        "--field-size",
+        type=_float_arg("--field-size"),
+        default=2.3,
+        help="side of the square field in m (the paper's: 2.3; at its density N robots need "
+        "2.3 x sqrt(N / 4), e.g. --robots 100 --packs 125 --field-size 11.5)",
+    )
+    snap.add_argument(
+        "--size",
+        type=_int_arg("--size"),
+        default=None,
+        help="image side in px (default: 640 for the paper's 2.3 m field, growing with the "
+        "field to keep its pixels per metre, up to 2048)",
+    )
     snap.add_argument(
         "--robot",
         type=_int_arg("--robot"),

@@ -65,7 +65,9 @@ WALL_GEOMS = ("wall_north", "wall_south", "wall_east", "wall_west")
 TOP_CAMERA = "top_down"
 CHASE_CAMERA = "chase"
 OMNI_CAMERAS = ("omni_front", "omni_left", "omni_back", "omni_right")
-FIELD_SIZE = 2.3  # m, inner side length of the square field
+#: m, inner side length of the paper's square field: the arena file's walls and the default of
+#: ``WorldConfig.field_size`` (the world resizes the walls for other sides).
+FIELD_SIZE = 2.3
 
 # --- collision bits (contype / conaffinity) -------------------------------------------------
 # bit 0: ground contacts (wheels and casters touch the floor only);

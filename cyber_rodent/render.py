@@ -214,6 +214,25 @@ def text_scale(height: int, base: float = 0.5, low: float = 0.35, high: float = 
     return float(min(high, max(low, base * height / 720)))
 
 
+#: Font scale per pixel per metre of a robot label (:func:`annotate_robots`): a label about as
+#: tall as a robot is long. In the paper's field the image height's scale is always smaller;
+#: in a large field seen whole, this keeps 100 robots' labels from covering the field.
+LABEL_SCALE_PER_PX_PER_M = 0.004
+
+
+def label_scale(height: int, px_per_m: float) -> float:
+    """The font scale of robot labels on a top-down image ``height`` px tall that shows
+    ``px_per_m`` pixels per metre: :func:`text_scale`, no larger than the robots' own scale."""
+    return float(min(text_scale(height), max(0.35, LABEL_SCALE_PER_PX_PER_M * px_per_m)))
+
+
+def default_image_size(field_size: float, base: int = 640, most: int = 2048) -> int:
+    """Side (px) of a top-down snapshot of a field of side ``field_size`` (m): ``base`` for
+    the paper's 2.3 m field and at least as many pixels per metre for a larger one, up to
+    ``most``."""
+    return int(min(most, max(base, round(base * field_size / C.FIELD_SIZE))))
+
+
 def text_thickness(scale: float) -> int:
     return 1 if scale < 0.7 else 2
 
@@ -464,14 +483,15 @@ def annotate_robots(
         yaws: (n,) headings in radians.
         tags: what each robot's label says.
         px_per_m: image scale at the robots' tops (arrow length, label clearance).
-        scale: font scale (default: from the image height).
+        scale: font scale (default: from the image height, no larger than the robots' scale:
+            :func:`label_scale`).
 
     Returns:
         The (n, 4) label boxes drawn, or None if not even the compact labels (IDs alone) fit,
         in which case no label is drawn.
     """
     height, width = image.shape[:2]
-    scale = text_scale(height) if scale is None else scale
+    scale = label_scale(height, px_per_m) if scale is None else scale
     clearance = 0.11 * px_per_m  # the chassis' half-diagonal, about
     anchors = np.asarray(anchors, dtype=float).reshape(-1, 2)
     for anchor, yaw in zip(anchors, yaws, strict=True):

@@ -48,11 +48,25 @@ PACK_WALL_CLEARANCE = 0.2
 #: turning in place (0.28 m), so no robot gets jammed between two packs (a 19 cm gap once held
 #: a robot for the rest of a run).
 PACK_GAP = 0.3
+#: Bounds of ``WorldConfig.field_size`` (m). Half a metre holds one robot; 50 m is about 20 times
+#: the paper's side and holds some 12,000 robots at the placement's packing density, far more
+#: than :data:`MAX_ROBOTS`, so a larger side is a typo.
+MIN_FIELD_SIZE = 0.5
+MAX_FIELD_SIZE = 50.0
+#: The most robots and packs a world may hold, in a field large enough for them (the fit check
+#: of :class:`WorldConfig` decides what fits a given field). Twice the largest colony the cost
+#: benchmark measures (100 robots, 125 packs: ``benchmarks/colony_scale.py``); the geometric
+#: vision keeps arrays of robots x targets, so much larger colonies are a different program.
+MAX_ROBOTS = 200
+MAX_PACKS = 300
 
 
-def _usable_area() -> float:
-    half = C.FIELD_SIZE / 2
-    return (2 * half) ** 2
+def _usable_area(field_size: float) -> float:
+    return field_size**2
+
+
+def _robot_placement_radius() -> float:
+    return C.BODY_RADIUS + _PLACEMENT_MARGIN
 
 
 def _pack_placement_radius(pack_gap: float = PACK_GAP) -> float:
@@ -67,17 +81,19 @@ def _pack_wall_margin(pack_gap: float, pack_wall_clearance: float) -> float:
 
 
 def _disc_area(n_robots: int, n_packs: int, pack_gap: float = PACK_GAP) -> float:
-    r_robot = C.BODY_RADIUS + _PLACEMENT_MARGIN
+    r_robot = _robot_placement_radius()
     r_pack = _pack_placement_radius(pack_gap)
     return math.pi * (n_robots * r_robot**2 + n_packs * r_pack**2)
 
 
-def _pack_square(pack_gap: float, pack_wall_clearance: float) -> float:
+def _pack_square(field_size: float, pack_gap: float, pack_wall_clearance: float) -> float:
     """Side of the square that the packs' placement discs stay within (m)."""
-    return C.FIELD_SIZE - 2 * _pack_wall_margin(pack_gap, pack_wall_clearance)
+    return field_size - 2 * _pack_wall_margin(pack_gap, pack_wall_clearance)
 
 
-def _packs_fit(n_packs: int, pack_gap: float, pack_wall_clearance: float) -> bool:
+def _packs_fit(
+    n_packs: int, pack_gap: float, pack_wall_clearance: float, field_size: float = C.FIELD_SIZE
+) -> bool:
     """Do ``n_packs`` placement discs fit in the square the wall clearance leaves them?
 
     One pack fits wherever its centre has room; more must also stay within the packing
@@ -86,29 +102,132 @@ def _packs_fit(n_packs: int, pack_gap: float, pack_wall_clearance: float) -> boo
     if n_packs == 0:
         return True
     r_pack = _pack_placement_radius(pack_gap)
-    side = _pack_square(pack_gap, pack_wall_clearance)
+    side = _pack_square(field_size, pack_gap, pack_wall_clearance)
     if side <= 2 * r_pack:
         return False
     return n_packs == 1 or n_packs * math.pi * r_pack**2 <= side**2 * _MAX_PACKING_DENSITY
 
 
+def fits(
+    n_robots: int,
+    n_packs: int,
+    field_size: float = C.FIELD_SIZE,
+    pack_gap: float = PACK_GAP,
+    pack_wall_clearance: float = PACK_WALL_CLEARANCE,
+) -> bool:
+    """Do ``n_robots`` robots and ``n_packs`` packs fit a field of side ``field_size`` (m)?
+
+    The rule :class:`WorldConfig` applies: every robot's placement disc fits between the
+    walls, the packs fit the square their wall clearance leaves them, and all placement discs
+    together cover at most the packing density (40 %) of the field, which the placement's
+    rejection sampling can still draw.
+    """
+    if field_size <= 2 * _robot_placement_radius():
+        return False
+    if not _packs_fit(n_packs, pack_gap, pack_wall_clearance, field_size):
+        return False
+    area = _disc_area(n_robots, n_packs, pack_gap)
+    return area <= _usable_area(field_size) * _MAX_PACKING_DENSITY
+
+
 def max_counts(
-    pack_gap: float = PACK_GAP, pack_wall_clearance: float = PACK_WALL_CLEARANCE
+    pack_gap: float = PACK_GAP,
+    pack_wall_clearance: float = PACK_WALL_CLEARANCE,
+    field_size: float = C.FIELD_SIZE,
 ) -> tuple[int, int]:
-    """The largest robot count (with no packs) and pack count (with one robot) that fit."""
-    budget = _usable_area() * _MAX_PACKING_DENSITY
-    r_robot = C.BODY_RADIUS + _PLACEMENT_MARGIN
+    """The largest robot count (with no packs) and pack count (with one robot) that fit a
+    field of side ``field_size``."""
+    budget = _usable_area(field_size) * _MAX_PACKING_DENSITY
+    r_robot = _robot_placement_radius()
     r_pack = _pack_placement_radius(pack_gap)
     max_robots = int(budget / (math.pi * r_robot**2))
     max_packs = int((budget - math.pi * r_robot**2) / (math.pi * r_pack**2))
-    while max_packs > 0 and not _packs_fit(max_packs, pack_gap, pack_wall_clearance):
+    while max_packs > 0 and not _packs_fit(max_packs, pack_gap, pack_wall_clearance, field_size):
         max_packs -= 1
     return max_robots, max_packs
 
 
-#: The most robots (with no packs) and packs (with one robot) that fit in the field, with the
-#: default pack gap.
-MAX_ROBOTS, MAX_PACKS = max_counts()
+def most_robots(
+    n_packs: int,
+    field_size: float = C.FIELD_SIZE,
+    pack_gap: float = PACK_GAP,
+    pack_wall_clearance: float = PACK_WALL_CLEARANCE,
+) -> int:
+    """The most robots (at most :data:`MAX_ROBOTS`) that fit beside ``n_packs`` packs (0 if
+    none, or if the packs themselves do not fit)."""
+    if not fits(1, n_packs, field_size, pack_gap, pack_wall_clearance):
+        return 0
+    spare = _usable_area(field_size) * _MAX_PACKING_DENSITY - _disc_area(0, n_packs, pack_gap)
+    count = min(MAX_ROBOTS, int(spare / (math.pi * _robot_placement_radius() ** 2)) + 1)
+    while count > 0 and not fits(count, n_packs, field_size, pack_gap, pack_wall_clearance):
+        count -= 1
+    return count
+
+
+def most_packs(
+    n_robots: int,
+    field_size: float = C.FIELD_SIZE,
+    pack_gap: float = PACK_GAP,
+    pack_wall_clearance: float = PACK_WALL_CLEARANCE,
+) -> int:
+    """The most packs (at most :data:`MAX_PACKS`) that fit beside ``n_robots`` robots (-1 if
+    the robots alone do not fit)."""
+    if not fits(n_robots, 0, field_size, pack_gap, pack_wall_clearance):
+        return -1
+    spare = _usable_area(field_size) * _MAX_PACKING_DENSITY - _disc_area(n_robots, 0, pack_gap)
+    count = min(MAX_PACKS, int(spare / (math.pi * _pack_placement_radius(pack_gap) ** 2)) + 1)
+    while count > 0 and not fits(n_robots, count, field_size, pack_gap, pack_wall_clearance):
+        count -= 1
+    return count
+
+
+def smallest_field(
+    n_robots: int,
+    n_packs: int,
+    pack_gap: float = PACK_GAP,
+    pack_wall_clearance: float = PACK_WALL_CLEARANCE,
+) -> float:
+    """The smallest field side (m, rounded up to the centimetre) that holds ``n_robots``
+    robots and ``n_packs`` packs (:func:`fits`)."""
+    r_pack = _pack_placement_radius(pack_gap)
+    need = max(
+        2 * _robot_placement_radius(),
+        math.sqrt(_disc_area(n_robots, n_packs, pack_gap) / _MAX_PACKING_DENSITY),
+    )
+    if n_packs:
+        margin = 2 * _pack_wall_margin(pack_gap, pack_wall_clearance)
+        side = math.sqrt(n_packs * math.pi * r_pack**2 / _MAX_PACKING_DENSITY)
+        need = max(need, margin + (2 * r_pack if n_packs == 1 else side))
+    size = math.ceil(need * 100 - 1e-6) / 100
+    while not fits(n_robots, n_packs, size, pack_gap, pack_wall_clearance):
+        size = round(size + 0.01, 2)
+    return size
+
+
+def _fit_problem(config: WorldConfig) -> str:
+    """Why ``config``'s robots and packs do not fit its field, in one line naming the fields
+    and what fits ("" if they fit)."""
+    n, k, size = config.n_robots, config.n_packs, config.field_size
+    gap, clearance = config.pack_gap, config.pack_wall_clearance
+    if fits(n, k, size, gap, clearance):
+        return ""
+    need = smallest_field(n, k, gap, clearance)
+    if not _packs_fit(k, gap, clearance, size):
+        alone = most_packs(0, size, gap, clearance)
+        return (
+            f"n_packs={k} packs do not fit in the field_size={size:g} m field with "
+            f"pack_gap={gap} m and pack_wall_clearance={clearance} m: at most {max(alone, 0)} "
+            f"fit; {n} robots and {k} packs need field_size >= {need:g} m (or a smaller "
+            "pack_gap or pack_wall_clearance)"
+        )
+    packs = most_packs(n, size, gap, clearance)
+    beside = f"{n} robots with at most {packs} packs" if packs >= 0 else f"fewer than {n} robots"
+    return (
+        f"n_robots={n} and n_packs={k} do not fit in the field_size={size:g} m field together "
+        f"with pack_gap={gap} m: it holds {beside}, or {k} packs with at most "
+        f"{most_robots(k, size, gap, clearance)} robots; {n} robots and {k} packs need "
+        f"field_size >= {need:g} m"
+    )
 
 
 @dataclass(frozen=True)
@@ -116,6 +235,11 @@ class WorldConfig:
     """Physical setup of the field.
 
     Attributes:
+        field_size: side of the square, walled field, m (paper: 2.3). The walls, the placement
+            and the camera's default range (the field's diagonal, docs/design.md §9.21)
+            follow it; the inputs' distance normalisation does not (it stays the paper
+            field's diagonal, 3.25 m, which the shipped behaviours learned on: §9.19). A
+            colony at the paper's density has a side of 2.3 m x sqrt(n_robots / 4).
         n_robots: number of Cyber Rodents (paper, simulation: 4).
         n_packs: number of battery packs (paper, simulation: 5; hardware: 6).
         timestep: physics timestep in seconds. 1/120 s (24 substeps per 0.2 s control step)
@@ -138,12 +262,16 @@ class WorldConfig:
             behind it; a robot already docked onto it keeps recharging. 0, the default, is the
             paper's rule: packs are always available.
 
-    The counts are bounded by what fits in the field: :data:`MAX_ROBOTS` and :data:`MAX_PACKS`
-    (at the default pack gap and wall clearance), the packs alone in the square the wall
-    clearance leaves them, and robots and packs together, each at the packing density the
-    placement can still draw.
+    The counts are bounded by :data:`MAX_ROBOTS` and :data:`MAX_PACKS` and by what fits in
+    the field (:func:`fits`): the packs alone in the square the wall clearance leaves them,
+    and robots and packs together, each at the packing density the placement can still draw.
+    A combination that does not fit is refused with one line naming the fields, what the
+    field holds and the smallest field that holds it.
     """
 
+    field_size: float = number(
+        C.FIELD_SIZE, MIN_FIELD_SIZE, MAX_FIELD_SIZE, unit="m", source="paper §3.2"
+    )
     n_robots: int = integer(4, 1, MAX_ROBOTS, unit="robots", source="paper §3.2")
     n_packs: int = integer(5, 0, MAX_PACKS, unit="packs", source="paper §3.2")
     timestep: float = number(1.0 / 120.0, 1e-4, 0.05, unit="s", source="docs/design.md §4")
@@ -157,19 +285,38 @@ class WorldConfig:
 
     def __post_init__(self) -> None:
         validate_fields(self)
-        if not _packs_fit(self.n_packs, self.pack_gap, self.pack_wall_clearance):
-            raise ValueError(
-                f"n_packs={self.n_packs} packs do not fit in the {C.FIELD_SIZE} m field with "
-                f"pack_gap={self.pack_gap} m and pack_wall_clearance="
-                f"{self.pack_wall_clearance} m; reduce one of them"
-            )
-        area = _disc_area(self.n_robots, self.n_packs, self.pack_gap)
-        if not area <= _usable_area() * _MAX_PACKING_DENSITY:
-            raise ValueError(
-                f"n_robots={self.n_robots} and n_packs={self.n_packs} do not fit in the "
-                f"{C.FIELD_SIZE} m field together with pack_gap={self.pack_gap} m; reduce "
-                "one of them"
-            )
+        problem = _fit_problem(self)
+        if problem:
+            raise ValueError(problem)
+
+    @property
+    def diagonal(self) -> float:
+        """The field's diagonal, m (3.25 m for the paper's 2.3 m field)."""
+        return self.field_size * math.sqrt(2)
+
+
+def resize_field(arena: mjcf.RootElement, field_size: float) -> None:
+    """Move the arena's walls, floor and top-down camera to a field of side ``field_size``.
+
+    The arena file is the paper's 2.3 m field: each wall keeps its thickness and height, and
+    moves out by the change in half side, growing by the same amount so that the corners stay
+    closed; the floor grows with them and the top-down camera rises in proportion, so the whole
+    field stays in its view. At 2.3 m nothing changes (the same compiled model, bit for bit).
+    """
+    grow = field_size / 2 - C.FIELD_SIZE / 2
+    if grow == 0.0:
+        return
+    floor = arena.find("geom", C.FLOOR_GEOM)
+    floor.size = [floor.size[0] + grow, floor.size[1] + grow, floor.size[2]]
+    for name in C.WALL_GEOMS:
+        wall = arena.find("geom", name)
+        pos, size = list(wall.pos), list(wall.size)
+        axis = 0 if abs(pos[0]) > abs(pos[1]) else 1  # the axis the wall stands across
+        pos[axis] += math.copysign(grow, pos[axis])
+        size[1 - axis] += grow
+        wall.pos, wall.size = pos, size
+    camera = arena.find("camera", C.TOP_CAMERA)
+    camera.pos = [camera.pos[0], camera.pos[1], camera.pos[2] * (field_size / C.FIELD_SIZE)]
 
 
 def dock_hold_name(robot: int) -> str:
@@ -177,13 +324,19 @@ def dock_hold_name(robot: int) -> str:
     return f"dock_hold_{robot}"
 
 
-def build_mjcf(n_robots: int, n_packs: int, timestep: float) -> mjcf.RootElement:
-    """The field's MJCF tree with ``n_robots`` robots and ``n_packs`` packs at the origin."""
+def build_mjcf(
+    n_robots: int, n_packs: int, timestep: float, field_size: float = C.FIELD_SIZE
+) -> mjcf.RootElement:
+    """The field's MJCF tree with ``n_robots`` robots and ``n_packs`` packs at the origin, in a
+    square field of side ``field_size`` (m)."""
     arena = mjcf.from_path(str(asset_path(C.ARENA_XML)))
     arena.option.timestep = timestep
-    # MuJoCo's arena holds contacts and constraint rows; pile-ups grow with the robot count
-    # (16 robots overflowed 4 MB). 4 MB per robot, at least the arena file's 16 MB.
-    arena.size.memory = f"{max(16, 4 * n_robots)}M"
+    resize_field(arena, field_size)
+    # MuJoCo's arena holds the contacts, the constraint rows and the solver's stack. Measured
+    # peaks (arena + stack, robots driving into one pile at the paper's density): 0.14 MB for
+    # 4 robots, 3.0 MB for 100. 1 MB per robot, at least the arena file's 16 MB, leaves a
+    # margin of 30 or more; a larger arena costs address space, not memory, until it is used.
+    arena.size.memory = f"{max(16, n_robots)}M"
     robot_file = str(asset_path(C.ROBOT_XML))
     pack_file = str(asset_path(C.BATTERY_PACK_XML))
     for i in range(n_robots):
@@ -218,12 +371,19 @@ class World:
 
     def __init__(self, config: WorldConfig | None = None, rng: np.random.Generator | None = None):
         self.config = config or WorldConfig()
-        self.mjcf_model = build_mjcf(
-            self.config.n_robots, self.config.n_packs, self.config.timestep
-        )
+        cfg = self.config
+        self.mjcf_model = build_mjcf(cfg.n_robots, cfg.n_packs, cfg.timestep, cfg.field_size)
+        # dm_control evaluates the model once as compiled, every robot stacked at the origin
+        # until reset() places them: with contacts on, each robot would touch every other
+        # there (100 robots overflowed a 400 MB arena). Contacts are off for that evaluation
+        # only; nothing compiled depends on the flag.
+        flags = self.mjcf_model.option.flag
+        flags.contact = "disable"
         self.physics = mjcf.Physics.from_mjcf_model(self.mjcf_model)
+        flags.contact = None
         self.model: mujoco.MjModel = self.physics.model.ptr
         self.data: mujoco.MjData = self.physics.data.ptr
+        self.model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         self._index()
         self.led_on = np.zeros(self.config.n_robots, dtype=bool)
         #: (n_packs,) the pack shows its colour and takes dockings (``set_pack_active``).
@@ -342,7 +502,7 @@ class World:
         )
         pack_wall = _pack_wall_margin(cfg.pack_gap, cfg.pack_wall_clearance)
         wall_margin = np.concatenate([np.zeros(n), np.full(k, pack_wall)])
-        centres = place_discs(radii, C.FIELD_SIZE / 2, rng, wall_margin)
+        centres = place_discs(radii, cfg.field_size / 2, rng, wall_margin)
         yaw = rng.uniform(-math.pi, math.pi, size=n)
         for i in range(n):
             self.set_robot_pose(i, centres[i, 0], centres[i, 1], yaw[i])

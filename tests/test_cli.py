@@ -138,3 +138,22 @@ def test_a_rendered_task_closes_its_gl_context_at_exit() -> None:
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert result.stderr == ""
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--field-size", "0.2"), "field_size must be a number in [0.5, 50], got 0.2"),
+        (("--field-size", "wide"), "--field-size must be a number"),
+        # 100 robots and 125 packs need 7.58 m; the paper's 2.3 m field holds 16 packs.
+        (("--robots", "100", "--packs", "125"), "need field_size >= 7.58 m"),
+        (("--robots", "100", "--packs", "125", "--field-size", "7"), "field_size >= 7.58 m"),
+    ],
+)
+def test_snapshot_bad_field(tmp_path: Path, args: tuple, message: str) -> None:
+    out = tmp_path / "x.png"
+    result = run_cli("snapshot", "--out", str(out), *args)
+    assert result.returncode == 2
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert "Traceback" not in result.stderr
+    assert not out.exists()

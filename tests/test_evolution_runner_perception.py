@@ -14,13 +14,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from behaviours import behaviour_inputs
+from behaviours import BehaviourPolicies, behaviour_inputs
 from cyber_rodent.constants import PROXIMITY_SIX
 from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.vision import BATTERY, FACE, LED, CameraConfig, VisionNoise, make_provider
 from cyber_rodent.vision.types import normalise_distance
 from cyber_rodent.world import World, WorldConfig
-from evolution.runner import Perception
+from evolution.config import EvolutionConfig
+from evolution.runner import EvolutionRunner, Perception, RunConfig
 
 
 def _scatter(world: World, rng: np.random.Generator, spread: float) -> None:
@@ -112,3 +113,15 @@ def test_proximity_hand_computed() -> None:
     # Search's inputs are the two largest proximities, in decreasing order.
     top = np.sort(perception.inputs.proximity[0])[::-1][:2]
     np.testing.assert_array_equal(perception.inputs.behaviour.search[0], top)
+
+
+def test_inputs_keep_the_paper_fields_scale_in_a_larger_field() -> None:
+    """In a 4.6 m field the camera sees to 6.5 m, while distances are still normalised by the
+    paper field's diagonal, 3.25 m, which the shipped behaviours learned on."""
+    evo = EvolutionConfig(population_size=8, n_robots=4)
+    config = RunConfig(evolution=evo, world=WorldConfig(field_size=4.6, n_robots=4))
+    runner = EvolutionRunner(config, 0, BehaviourPolicies.reactive())
+    assert runner.vision.config.max_range == pytest.approx(6.5054, abs=1e-4)
+    assert runner.perception.rules.max_distance == pytest.approx(3.2527, abs=1e-4)
+    for _ in range(5):
+        runner.step()

@@ -17,8 +17,11 @@ from cyber_rodent.render import (
     RobotTag,
     annotate_world,
     boxes_intersect,
+    default_image_size,
+    label_scale,
     label_size,
     place_labels,
+    text_scale,
 )
 from cyber_rodent.world import World, WorldConfig
 
@@ -185,3 +188,30 @@ def test_background_only_replaces_empty_space() -> None:
     assert empty.sum() > 1000  # a wide image shows space beside the field
     assert (b[empty] == BACKGROUND_RGB).all()
     np.testing.assert_array_equal(a[~empty], b[~empty])
+
+
+def test_a_large_field_is_framed_whole_with_labels_at_the_robots_scale() -> None:
+    # A 6.3 m field (30 robots at the paper's density): the snapshot's default side grows to
+    # keep the paper's pixels per metre, 640 x 6.3 / 2.3 = 1753 px; the top-down camera rises
+    # with the field, so all four corners stay in view.
+    assert default_image_size(2.3) == 640 and default_image_size(6.3) == 1753
+    assert default_image_size(11.5) == 2048  # capped
+    world = World(WorldConfig(field_size=6.3, n_robots=30, n_packs=38), np.random.default_rng(1))
+    with FieldRenderer(world, 600, 600, background=BACKGROUND_RGB) as renderer:
+        corners = np.array([[x, y, 0.0] for x in (-3.15, 3.15) for y in (-3.15, 3.15)])
+        px = renderer.project_top_down(corners)
+        assert (px > 20).all() and (px < 580).all()
+        image = renderer.top_down()
+        per_m = renderer.metres_to_px()
+        boxes = annotate_world(image, renderer)
+        poses = world.poses()
+        anchors = renderer.project_top_down(np.column_stack([poses[:, :2], np.full(30, 0.17)]))
+    assert boxes is not None
+    assert_disjoint(boxes, (600, 600))
+    # Labels about a robot's length tall: the font follows the robots, not the image.
+    assert label_scale(600, per_m) == max(0.35, 0.004 * per_m) < text_scale(600)
+    # The paper's field at 640 px shows 232 px per metre: there the image's scale is smaller.
+    assert label_scale(640, 232.0) == text_scale(640)
+    # Each robot's label sits by its robot.
+    centres = (boxes[:, :2] + boxes[:, 2:]) / 2
+    assert np.hypot(*(centres - anchors).T).max() < 0.6 * per_m

@@ -249,3 +249,23 @@ def test_cell_comparison_by_hand() -> None:
     assert table.loc["ee", "completed"] == 5.0 and table.loc["ee", "runs"] == 2
     assert table.loc["ee", "generations"] == "1-2" and table.loc["ee", "survival.x"] == 1
     assert table.loc["ce", "batteries"] == 5.0 and math.isnan(table.loc["ce", "batteries_std"])
+
+
+def test_the_field_size_is_a_key_and_the_camera_range_follows_it() -> None:
+    setting = settings()["world.field_size"]
+    assert (setting.default, setting.unit, setting.allowed) == (2.3, "m", "number in [0.5, 50]")
+    # A 4.6 m field: the camera sees to its diagonal, 4.6 m x sqrt(2) = 6.5054 m.
+    wide = apply(RunConfig(), {"world.field_size": 4.6})
+    assert wide.world.field_size == 4.6
+    assert wide.camera.max_range == pytest.approx(6.5054, abs=1e-4)
+    assert RunConfig(world=WorldConfig(field_size=4.6)).camera == wide.camera
+    assert changed(wide) == {"world.field_size": 4.6, "camera.max_range": wide.camera.max_range}
+    # A range set by hand is kept, in whichever order the two keys come.
+    for values in (
+        {"world.field_size": 4.6, "camera.max_range": 5.0},
+        {"camera.max_range": 5.0, "world.field_size": 4.6},
+    ):
+        assert apply(RunConfig(), values).camera.max_range == 5.0
+    assert "field_size = 4.6" in to_toml(wide)
+    with pytest.raises(ValueError, match=r"world.field_size must be a number in \[0.5, 50\]"):
+        apply(RunConfig(), {"world.field_size": 0.2})

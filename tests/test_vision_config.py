@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,6 +13,9 @@ from cyber_rodent.vision import (
     CameraConfig,
     ColourThreshold,
     VisionNoise,
+    camera_for_field,
+    default_max_range,
+    follow_field,
     make_provider,
     normalise_bearing,
     normalise_distance,
@@ -136,3 +140,32 @@ def test_distance_normalisation_hand_cases() -> None:
     np.testing.assert_allclose(normalise_distance(d, visible), [0.0, 0.5, 1.0, 1.0, 1.0])
     # An unseen target's distance is 1 whatever the stored distance (docs/design.md §5).
     assert normalise_distance(np.array([0.1]), np.array([False]))[0] == 1.0
+
+
+def test_the_default_range_is_the_field_diagonal() -> None:
+    # 2.3 m x sqrt(2) = 3.2527 m; a 4.6 m field's diagonal is twice that, 6.5054 m.
+    assert default_max_range(2.3) == DEFAULT_MAX_DISTANCE == CameraConfig().max_range
+    assert default_max_range(4.6) == pytest.approx(6.5054, abs=1e-4)
+    assert camera_for_field(2.3) == CameraConfig()
+    wide = camera_for_field(4.6)
+    assert wide.max_range == pytest.approx(6.5054, abs=1e-4)
+    assert dataclasses.replace(wide, max_range=DEFAULT_MAX_DISTANCE) == CameraConfig()
+    # A provider given no camera sees to its own world's diagonal.
+    world = World(WorldConfig(field_size=4.6, n_robots=2, n_packs=1))
+    assert make_provider("geometric", world).config.max_range == wide.max_range
+
+
+def test_a_hand_set_range_stays_when_the_field_changes() -> None:
+    moved = follow_field(CameraConfig(), 2.3, 4.6)
+    assert moved.max_range == pytest.approx(6.5054, abs=1e-4)
+    assert follow_field(moved, 4.6, 2.3) == CameraConfig()
+    assert follow_field(CameraConfig(max_range=2.0), 2.3, 4.6).max_range == 2.0
+    assert follow_field(CameraConfig(), 2.3, 2.3) == CameraConfig()
+
+
+def test_distance_normalisation_stays_the_paper_fields() -> None:
+    # The inputs' scale is the paper field's diagonal whatever the field (the shipped
+    # behaviours learned on it): 1.6 m is 1.6 / 3.2527 = 0.4919 in any field.
+    assert DEFAULT_MAX_DISTANCE == pytest.approx(3.2527, abs=1e-4)
+    d = normalise_distance(np.array([1.6, 5.0]), np.array([True, True]))
+    np.testing.assert_allclose(d, [0.4919, 1.0], atol=1e-4)

@@ -10,7 +10,18 @@ import pytest
 
 from cyber_rodent import constants as C
 from cyber_rodent.assets import ASSETS_ENV_VAR, AssetNotFoundError, asset_path
-from cyber_rodent.world import World, WorldConfig, max_counts, place_discs
+from cyber_rodent.world import (
+    MAX_PACKS,
+    MAX_ROBOTS,
+    World,
+    WorldConfig,
+    fits,
+    max_counts,
+    most_packs,
+    most_robots,
+    place_discs,
+    smallest_field,
+)
 
 
 @pytest.fixture(scope="module")
@@ -277,3 +288,106 @@ def test_max_counts_follow_the_pack_gap() -> None:
     assert max_counts(0.9)[1] == 2  # (2.116 - 0.080) m² / 0.770 m² per pack
     assert max_counts(0.9)[0] == max_counts()[0]  # robots do not depend on it
     WorldConfig(n_robots=1, n_packs=2, pack_gap=0.9)  # the largest count fits
+
+
+# --- the field's size ---------------------------------------------------------------------------
+def test_field_size_defaults_to_the_paper_field() -> None:
+    assert WorldConfig().field_size == C.FIELD_SIZE == 2.3
+    assert WorldConfig().diagonal == pytest.approx(3.2527, abs=1e-4)  # 2.3 m x sqrt(2)
+
+
+@pytest.mark.parametrize("value", [0.4, 50.5, float("nan"), float("inf"), True, "2.3"])
+def test_bad_field_size_names_the_field_and_its_range(value: object) -> None:
+    with pytest.raises(ValueError, match=r"field_size must be a number in \[0.5, 50\]"):
+        WorldConfig(field_size=value)  # type: ignore[arg-type]
+
+
+def test_a_hundred_robots_fit_at_the_paper_density_not_in_the_paper_field() -> None:
+    # 100 robot discs of 0.16 m cover 8.04 m², 125 pack discs of 0.195 m 14.93 m²: 22.97 m².
+    # 40 % of an 11.5 m field is 52.9 m²; of the 2.3 m field, 2.12 m². The smallest field
+    # holding them: sqrt(22.97 / 0.4) = 7.58 m.
+    WorldConfig(field_size=11.5, n_robots=100, n_packs=125)
+    assert fits(100, 125, 11.5) and not fits(100, 125, 2.3)
+    assert smallest_field(100, 125) == 7.58
+    assert fits(100, 125, 7.58) and not fits(100, 125, 7.57)
+    with pytest.raises(ValueError) as error:
+        WorldConfig(field_size=2.3, n_robots=100, n_packs=125)
+    message = str(error.value)
+    assert "\n" not in message
+    # 125 pack discs need a 6.11 m square (37.3 m² at 40 %) plus the walls' 0.05 m margins.
+    assert "n_packs=125" in message and "field_size=2.3" in message
+    assert "at most 16 fit" in message and "field_size >= 7.58 m" in message
+
+
+def test_robots_and_packs_that_fit_apart_name_what_fits_together() -> None:
+    # 5 packs (0.597 m²) leave 2.116 - 0.597 = 1.519 m² of the 2.3 m field: 18 robots of
+    # 0.0804 m²; 20 robots (1.608 m²) leave room for 4 packs of 0.1195 m².
+    with pytest.raises(ValueError) as error:
+        WorldConfig(n_robots=20, n_packs=5)
+    message = str(error.value)
+    assert message.startswith("n_robots=20 and n_packs=5 do not fit in the field_size=2.3 m")
+    assert "20 robots with at most 4 packs" in message
+    assert "5 packs with at most 18 robots" in message
+    assert most_robots(5) == 18 and most_packs(20) == 4
+    WorldConfig(n_robots=18, n_packs=5)
+    WorldConfig(n_robots=20, n_packs=4)
+
+
+def test_counts_are_bounded_whatever_the_field() -> None:
+    WorldConfig(field_size=50.0, n_robots=MAX_ROBOTS, n_packs=MAX_PACKS)
+    assert (MAX_ROBOTS, MAX_PACKS) == (200, 300)
+    with pytest.raises(ValueError, match=r"n_robots must be an integer in \[1, 200\]"):
+        WorldConfig(field_size=50.0, n_robots=201)
+    with pytest.raises(ValueError, match=r"n_packs must be an integer in \[0, 300\]"):
+        WorldConfig(field_size=50.0, n_packs=301)
+
+
+def test_walls_floor_and_top_camera_follow_the_field() -> None:
+    paper = World(WorldConfig())
+    wide = World(WorldConfig(field_size=4.6, n_packs=1))
+    m = paper.model
+    # The paper's field is the arena file's, number for number.
+    assert m.geom("wall_north").pos.tolist() == [0.0, 1.2, 0.1]
+    assert m.geom("wall_east").size.tolist() == [0.05, 1.25, 0.1]
+    assert m.geom("floor").size.tolist()[:2] == [1.25, 1.25]
+    assert m.cam("top_down").pos.tolist() == [0.0, 0.0, 3.0]
+    # A 4.6 m field: each wall moves out by 1.15 m and grows as much, keeping its thickness.
+    w = wide.model
+    np.testing.assert_allclose(w.geom("wall_north").pos, [0.0, 2.35, 0.1])
+    np.testing.assert_allclose(w.geom("wall_south").pos, [0.0, -2.35, 0.1])
+    np.testing.assert_allclose(w.geom("wall_east").pos, [2.35, 0.0, 0.1])
+    np.testing.assert_allclose(w.geom("wall_west").size, [0.05, 2.4, 0.1])
+    np.testing.assert_allclose(w.geom("wall_north").size, [2.35, 0.05, 0.1])
+    np.testing.assert_allclose(w.geom("floor").size[:2], [2.4, 2.4])
+    np.testing.assert_allclose(w.cam("top_down").pos, [0.0, 0.0, 6.0])
+    # A robot driving east stops at the east wall's inner face, x = 2.3 m.
+    wide.set_robot_pose(0, 1.5, 0.0, 0.0)
+    mujoco.mj_forward(wide.model, wide.data)
+    for _ in range(60):
+        wide.set_wheel_speeds(np.full(4, 0.5), np.full(4, 0.5))
+        wide.step(24)
+    front = wide.data.geom_xpos[wide.teeth_geom[0], 0]
+    assert 2.1 < front < 2.3
+
+
+def test_placement_fills_a_large_field() -> None:
+    w = World(WorldConfig(field_size=11.5, n_robots=100, n_packs=125), np.random.default_rng(2))
+    robots, packs = w.poses()[:, :2], w.pack_positions()
+    assert np.abs(robots).max() <= 5.75 - C.BODY_RADIUS
+    assert np.abs(packs).max() <= 5.75 - C.PACK_RADIUS - 0.2
+    assert np.abs(robots).max() > 4.0  # spread over the field, not the paper's 2.3 m
+    pts = np.vstack([robots, packs])
+    gaps = np.hypot(*(pts[:, None] - pts[None, :]).transpose(2, 0, 1))
+    np.fill_diagonal(gaps, np.inf)
+    assert gaps.min() >= 2 * C.PACK_RADIUS
+
+
+def test_a_hundred_robots_get_their_arena_without_a_pile_at_construction() -> None:
+    w = World(WorldConfig(field_size=11.5, n_robots=100, n_packs=125), np.random.default_rng(0))
+    assert w.data.narena == 100 * 2**20  # 1 MB per robot
+    assert w.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT == 0
+    w.step(100)
+    assert w.data.ncon == 4 * 100  # the contacts are on: at rest, four per robot
+    w.set_wheel_speeds(np.full(100, 1.0), np.full(100, 0.8))
+    w.step(240)
+    assert w.data.warning[mujoco.mjtWarning.mjWARN_CNSTRFULL].number == 0

@@ -26,6 +26,9 @@ from cyber_rodent.vision.config import (
     CameraConfig,
     ColourThreshold,
     VisionNoise,
+    camera_for_field,
+    default_max_range,
+    follow_field,
 )
 from cyber_rodent.vision.geometric import GeometricVision
 from cyber_rodent.vision.types import (
@@ -76,7 +79,7 @@ def make_provider(
     Args:
         name: ``"geometric"`` or ``"rendered"``.
         world: the world whose robots look.
-        config: the camera (default :class:`CameraConfig`).
+        config: the camera (default: :func:`camera_for_field` of the world's field).
         rng: generator for the optional noise model (required only if ``config.noise`` is on).
         backend: ``"numba"`` (compiled kernels) or ``"numpy"`` (their references).
 
@@ -126,6 +129,9 @@ __all__ = [
     "VisionFrame",
     "VisionNoise",
     "VisionProvider",
+    "camera_for_field",
+    "default_max_range",
+    "follow_field",
     "make_provider",
     "normalise_bearing",
     "normalise_distance",

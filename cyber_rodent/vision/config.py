@@ -24,6 +24,8 @@ corner factor ``sqrt(1 + tan²(π/n))``, so view centres see a little further do
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass, field
 
 from cyber_rodent.validation import check_integer, integer, number, validate_fields
@@ -109,7 +111,9 @@ class CameraConfig:
         elevation_min_deg: lowest elevation (negative = below the horizon) seen at every bearing.
         elevation_max_deg: highest elevation seen at every bearing (≥ 0: the horizon is in view).
         max_range: m, targets farther than this (horizontal distance) are not reported.
-            Default: the field's diagonal, i.e. the camera's resolution is the real limit.
+            Default: the field's diagonal, so the camera's resolution is the real limit:
+            3.25 m in the paper's 2.3 m field; a run in another field
+            (``world.field_size``) gets that field's diagonal (:func:`follow_field`).
         min_blob_area: pixels, per class (LED, FACE, BATTERY); smaller colour blobs are
             ignored, and the geometric provider applies the same threshold to a target's
             expected visible area. Nothing but an LED is green, so one pixel is an LED; red and
@@ -167,3 +171,27 @@ class CameraConfig:
         """Pixel columns of one robot's 360° strip."""
         return self.n_views * self.view_width
 
+
+def default_max_range(field_size: float) -> float:
+    """The camera's default range in a square field of side ``field_size`` (m): the field's
+    diagonal, so that the camera's resolution, not its range, limits what a robot sees
+    (docs/design.md §9.21). The paper's 2.3 m field gives :data:`DEFAULT_MAX_DISTANCE`."""
+    return field_size * math.sqrt(2)
+
+
+def camera_for_field(field_size: float) -> CameraConfig:
+    """The default camera in a square field of side ``field_size`` (m): its range is the
+    field's diagonal (:func:`default_max_range`); in the paper's field, :class:`CameraConfig`'s
+    defaults exactly."""
+    return CameraConfig(max_range=default_max_range(field_size))
+
+
+def follow_field(camera: CameraConfig, old_field: float, new_field: float) -> CameraConfig:
+    """``camera`` moved from a field of side ``old_field`` to one of ``new_field`` (m).
+
+    A range that is the old field's default (its diagonal, :func:`default_max_range`) becomes
+    the new field's; a range set to anything else is the user's choice and is kept.
+    """
+    if new_field != old_field and camera.max_range == default_max_range(old_field):
+        return dataclasses.replace(camera, max_range=default_max_range(new_field))
+    return camera

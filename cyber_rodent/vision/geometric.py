@@ -43,9 +43,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from cyber_rodent import constants as C
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
 from cyber_rodent.vision import kernels
-from cyber_rodent.vision.config import CameraConfig
+from cyber_rodent.vision.config import CameraConfig, camera_for_field
 from cyber_rodent.vision.detections import (
     apply_noise,
     frame_from_detections,
@@ -75,6 +76,19 @@ _PLATE_SAMPLE_INSET = 1e-4
 #: Geom groups that are rendered (mjvOption's default), hence able to hide a target.
 VISIBLE_GROUPS = np.array([1, 1, 1, 0, 0, 0], dtype=np.uint8)
 _EDGE_CLIP = 0.5 * math.pi - 1e-3  # rad, keep tan() finite for targets beside the camera
+#: m, cell side of the grid that the nearest-target search reaches targets through: half the
+#: paper's field, so the paper's world is 2 x 2 cells and its search places every target at
+#: once; in a larger field at the paper's density a cell holds about 2 targets.
+SEARCH_CELL = C.FIELD_SIZE / 2
+#: m, cell side of the grid that the search's rays find the geoms near them in: a few robots'
+#: widths, so a ray tests tens of geoms, not every geom of the colony.
+RAY_CELL = 0.5
+#: m, geoms with a larger bounding radius (the walls), and planes (unbounded), are tested by
+#: every ray instead of being binned.
+_ALWAYS_RBOUND = 0.5
+#: From this many geoms on, the search's rays test only the geoms near them; with fewer,
+#: ``mj_ray``'s scan of every geom costs no more (the paper's world has 67 geoms).
+CULL_FROM_GEOMS = 200
 
 
 @dataclass
@@ -112,7 +126,8 @@ class GeometricVision:
 
     Args:
         world: the world to observe (bound: every call reads its current ``MjData``).
-        config: the camera; the same config makes the rendered provider comparable.
+        config: the camera (default: :func:`~cyber_rodent.vision.config.camera_for_field` of
+            the world's field); the same config makes the rendered provider comparable.
         rng: generator for the noise model; required only if ``config.noise`` is enabled.
         backend: ``"numba"`` (compiled kernels) or ``"numpy"`` (their references).
 
@@ -134,7 +149,7 @@ class GeometricVision:
         if kernels.UNAVAILABLE_REASON:
             raise ValueError("geometric vision cannot cast rays: " + kernels.UNAVAILABLE_REASON)
         self.world = world
-        self.config = config or CameraConfig()
+        self.config = config or camera_for_field(world.config.field_size)
         if self.config.noise.enabled and rng is None:
             raise ValueError("config.noise is enabled, so pass rng=np.random.Generator")
         self.rng = rng
@@ -168,9 +183,7 @@ class GeometricVision:
                 s_along.append(max(shape.depth_front - _PLATE_SAMPLE_INSET, 0.0))
         sample_target = np.array(s_target, dtype=np.int64)
         n_samples = len(s_target)
-        self._sample_to_target = np.zeros((n_samples, n_targets))
-        self._sample_to_target[np.arange(n_samples), sample_target] = 1.0
-        inv_samples = 1.0 / self._sample_to_target.sum(axis=0)
+        inv_samples = 1.0 / np.bincount(sample_target, minlength=n_targets).astype(float)
         # Target of each geom (-1 for geoms that are no target); a pack's electrode ring counts
         # as its pack's (it only splits the pack's blue, see kernels.merge).
         target_of_geom = np.full(world.model.ngeom, -1, dtype=np.int64)
@@ -204,6 +217,8 @@ class GeometricVision:
         self.targets = kernels.TargetTable(
             camera_site=np.asarray(world.camera_site, dtype=np.int64),
             target_geom=self.target_geom,
+            target_cls=self.target_cls,
+            ids=np.arange(n_targets, dtype=np.int64),
             own=np.ascontiguousarray(self.target_owner[None, :] == np.arange(n)[:, None]),
             plate=plate,
             half_width=self.half_width,
@@ -264,15 +279,17 @@ class GeometricVision:
             lateral=np.zeros((n, n_targets, 3)),
             rays=np.zeros((n, n_samples, 3)),
             sample_ok=np.zeros((n, n_samples), dtype=np.bool_),
-            order=np.zeros(n_targets, dtype=np.int64),
+            order=np.zeros((3, n_targets), dtype=np.int64),
             ray_geom=np.zeros(1, dtype=np.int32),
         )
         poses = kernels.MujocoPoses(
             d.site_xpos, d.site_xmat, d.geom_xpos, d.geom_xmat, m._address, d._address
         )
+        self.grids = scene_index(world, n_targets, self.targets.geom_groups)
         self.scene = kernels.GeometricScene(
-            poses, self.targets, self.camera, world.led_on, world.pack_active, self.front
-        )
+            poses, self.targets, self.camera, world.led_on, world.pack_active, self.front,
+            self.grids,
+        )  # fmt: skip
         self.nearest = kernels.NearestTargets(
             bearing=np.zeros((n, 3)),
             distance=np.full((n, 3), np.inf),
@@ -297,6 +314,10 @@ class GeometricVision:
             spread=np.zeros(shape_nt),
             group=np.zeros(n_targets, dtype=np.int64),
             pack_active=world.pack_active,
+            listed=np.zeros(n_targets, dtype=np.int64),
+            nearest=np.zeros(n_targets, dtype=np.int64),
+            members=np.zeros(n_targets, dtype=np.int64),
+            reach=np.zeros(n_targets),
         )
         self._merge = bind(
             pick(self.backend, kernels.merge, kernels.merge_reference),
@@ -371,7 +392,10 @@ class GeometricVision:
             )
             hit[i, idx] = self._ray_geom[:k] == sample_geom[idx]
             hit_geom[i, idx] = self._ray_geom[:k]
-        visible_share = (hit @ self._sample_to_target) * self.targets.inv_samples
+        # Hits per target: its samples are consecutive (exact integer sums, as a product with
+        # the samples' 0/1 target matrix would give, without its targets x samples work).
+        hits = np.add.reduceat(hit, self.targets.sample_start, axis=1, dtype=float)
+        visible_share = hits * self.targets.inv_samples
         area = full_area * visible_share
         seen = candidate & (area >= self.targets.min_area)
         np.copyto(self.merging.seen, seen)
@@ -449,6 +473,61 @@ def widen_ray_culling_bounds(model: mujoco.MjModel) -> None:
             half *= radius / norm
         model.bvh_aabb[root, :3] = 0.0
         model.bvh_aabb[root, 3:] = half
+
+
+def uniform_grid(field_size: float, cell: float, members: np.ndarray) -> kernels.UniformGrid:
+    """A grid of cells of side ``cell`` over a square field of side ``field_size`` (centred on
+    the origin), for binning ``members``."""
+    side = max(1, math.ceil(field_size / cell - 1e-9))
+    members = np.ascontiguousarray(members, dtype=np.int64)
+    return kernels.UniformGrid(
+        origin=-field_size / 2,
+        cell=float(cell),
+        side=int(side),
+        members=members,
+        start=np.zeros(side * side + 1, dtype=np.int64),
+        cursor=np.zeros(side * side, dtype=np.int64),
+        items=np.zeros(len(members), dtype=np.int64),
+    )
+
+
+def scene_index(world: World, n_targets: int, groups: np.ndarray) -> kernels.SceneIndex:
+    """The grids of the nearest-target search (``kernels.nearest``) for ``world``: its targets
+    in cells of :data:`SEARCH_CELL`, and the geoms its rays may hit (those in a group of
+    ``groups``) in cells of :data:`RAY_CELL`, except planes and large geoms (the walls), which
+    every ray tests."""
+    m = world.model
+    group = np.clip(m.geom_group, 0, len(groups) - 1)
+    in_group = groups[group] != 0
+    rbound = np.asarray(m.geom_rbound, dtype=float)
+    always = in_group & ((rbound <= 0) | (rbound > _ALWAYS_RBOUND))
+    binned = np.flatnonzero(in_group & ~always)
+    reach = float(rbound[binned].max(initial=0.0)) + kernels.CULL_MARGIN
+    rays = kernels.RayCulling(
+        geom_size=m.geom_size,
+        geom_type=m.geom_type.astype(np.int64),
+        geom_rbound=rbound,
+        geom_bodyid=m.geom_bodyid.astype(np.int64),
+        geom_matid=m.geom_matid.astype(np.int64),
+        geom_rgba=m.geom_rgba,
+        mat_rgba=m.mat_rgba,
+        in_group=np.ascontiguousarray(in_group),
+        primitive=np.isin(m.geom_type, kernels.PRIMITIVE_GEOMS),
+        always=np.flatnonzero(always).astype(np.int64),
+        reach=reach,
+        cull=bool(m.ngeom >= CULL_FROM_GEOMS),
+    )
+    size = world.config.field_size
+    return kernels.SceneIndex(
+        targets=uniform_grid(size, SEARCH_CELL, np.arange(n_targets)),
+        geoms=uniform_grid(size, RAY_CELL, binned),
+        rays=rays,
+        found=np.zeros(3, dtype=np.int64),
+        tried=np.zeros(3, dtype=np.int64),
+        done=np.zeros(3, dtype=np.bool_),
+        ring=np.zeros(n_targets, dtype=np.int64),
+        near=np.zeros(m.ngeom, dtype=np.int64),
+    )
 
 
 def _samples_for(shape: TargetShape) -> tuple[tuple[float, float], ...]:

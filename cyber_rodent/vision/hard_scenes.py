@@ -34,6 +34,8 @@ MAX_PENETRATION = 0.001
 _ROBOT_MARGIN = C.BODY_RADIUS
 #: m, pack centres stay this far inside the walls.
 _PACK_MARGIN = C.PACK_RADIUS + 0.01
+#: m, half the side of the paper's field, which the families' scenes are drawn in
+#: (:meth:`Family.world_config`).
 _HALF = C.FIELD_SIZE / 2
 #: m, robot centre to pack centre when the robot's teeth touch the pack's electrode ring (the
 #: teeth's front face is 0.134 m ahead of the robot's origin).
@@ -109,11 +111,12 @@ def place(world: World, scene: Scene) -> None:
 
 def valid(world: World, scene: Scene) -> bool:
     """Whether ``scene`` stands inside the walls with no interpenetrating bodies (placed)."""
+    half = world.config.field_size / 2
     for x, y, _ in scene.robots:
-        if max(abs(x), abs(y)) > _HALF - _ROBOT_MARGIN:
+        if max(abs(x), abs(y)) > half - _ROBOT_MARGIN:
             return False
     for x, y in scene.packs:
-        if max(abs(x), abs(y)) > _HALF - _PACK_MARGIN:
+        if max(abs(x), abs(y)) > half - _PACK_MARGIN:
             return False
     place(world, scene)
     d = world.data

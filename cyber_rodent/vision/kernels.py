@@ -12,18 +12,26 @@ it, each written twice with the same signature (``docs/design.md`` §3):
 * :func:`nearest` / :func:`nearest_reference`: gather, front, then each class's candidates
   nearest first, casting MuJoCo's ``mj_ray`` at a candidate's samples only until its visibility
   is certain (a target is visible iff ``full_area * hits / samples >= min_area``). The compiled
-  kernel computes a target's projected size and samples only when the search reaches it.
+  kernel computes a target's position, projected size and samples only when its search
+  reaches it: targets are binned in a uniform grid (:class:`UniformGrid`) and reached ring of
+  cells by ring, nearest cells first, and a candidate is tried only once no target left in
+  farther cells can be nearer (:func:`nearest`'s docstring gives the bound). Its rays test
+  only the geoms near them (:func:`first_hit`). Neither changes the answer: the reference,
+  which places and sorts every target and casts ``mj_ray`` over every geom, gives the same
+  one bit for bit (``tests/test_kernel_parity.py``). So the cost per robot does not grow with
+  the colony at a given density (``benchmarks/colony_scale.py``).
 
-The compiled kernels call MuJoCo's own ``mj_ray`` through its C entry point (linked by symbol,
-so numba can cache the code); the references call the same C function through ``ctypes``, so
-both test occlusion exactly as MuJoCo does. The reference of :func:`front` is vectorised numpy;
-its small matrix products may round the last bit differently from the scalar loops, so the two
-agree to rounding (``tests/test_kernel_parity.py``).
+The compiled kernels call MuJoCo's own ``mj_ray`` and ``mju_rayGeom`` through their C entry
+points (linked by symbol, so numba can cache the code); the references call ``mj_ray`` through
+``ctypes``, so both test occlusion exactly as MuJoCo does. The reference of :func:`front` is
+vectorised numpy; its small matrix products may round the last bit differently from the scalar
+loops, so the two agree to rounding (``tests/test_kernel_parity.py``).
 
 Every kernel reads and writes named buffers built once by the provider:
 :class:`MujocoPoses` (views of ``MjData``), :class:`TargetTable` and :class:`CameraModel`
-(constants), :class:`FrontBuffers` (per-step scratch) and :class:`NearestTargets` (the answer),
-bundled as one :class:`GeometricScene`.
+(constants), :class:`FrontBuffers` (per-step scratch), :class:`SceneIndex` (the grids of
+targets and geoms, rebuilt each step) and :class:`NearestTargets` (the answer), bundled as one
+:class:`GeometricScene`.
 """
 
 from __future__ import annotations
@@ -50,11 +58,18 @@ _TWO_PI = 2.0 * math.pi
 #: Class order of :class:`NearestTargets` columns (LED, face, battery).
 assert (LED, FACE, BATTERY) == (0, 1, 2)
 
-#: MuJoCo versions whose ``mj_ray`` C signature the kernels' prototype was checked against (the
-#: header of 3.17.0: ``mjtNum mj_ray(const mjModel*, const mjData*, const mjtNum pnt[3],
-#: const mjtNum vec[3], const mjtByte* geomgroup, mjtBool flg_static, int bodyexclude,
-#: int geomid[1], mjtNum normal[3])``). A wrong prototype corrupts memory.
+#: MuJoCo versions whose ``mj_ray`` and ``mju_rayGeom`` C signatures the kernels' prototypes
+#: were checked against (the header of 3.17.0: ``mjtNum mj_ray(const mjModel*, const mjData*,
+#: const mjtNum pnt[3], const mjtNum vec[3], const mjtByte* geomgroup, mjtBool flg_static,
+#: int bodyexclude, int geomid[1], mjtNum normal[3])`` and ``mjtNum mju_rayGeom(const mjtNum
+#: pos[3], const mjtNum mat[9], const mjtNum size[3], const mjtNum pnt[3], const mjtNum vec[3],
+#: int geomtype, mjtNum normal[3])``), and whose ``mj_ray`` is the nearest hit of the geoms it
+#: does not eliminate, each intersected by ``mju_rayGeom`` (primitive geoms), ties to the lowest
+#: geom id (:func:`first_hit` relies on it). A wrong prototype corrupts memory.
 VERIFIED_MUJOCO = ("3.17.0",)
+#: MuJoCo's primitive geom types, the ones ``mju_rayGeom`` intersects (plane, sphere, capsule,
+#: ellipsoid, cylinder, box); ``mj_ray`` handles the others itself.
+PRIMITIVE_GEOMS = (0, 2, 3, 4, 5, 6)
 
 
 class MujocoPoses(NamedTuple):
@@ -76,6 +91,8 @@ class TargetTable(NamedTuple):
 
     camera_site: Ints  #: (n,) site of each robot's omni camera
     target_geom: Ints  #: (T,) geom of each target
+    target_cls: Ints  #: (T,) colour class of each target (LED, FACE, BATTERY)
+    ids: Ints  #: (T,) 0 .. T - 1: every target, as a list
     own: Bools  #: (n, T) the target belongs to the robot
     plate: Bools  #: (T,) a face plate (seen only from the front)
     half_width: Floats  #: (T,) m
@@ -140,10 +157,56 @@ class FrontBuffers(NamedTuple):
     candidate: Bools  #: (n, T) could be seen at all
     diff: Floats  #: (n, T, 3) camera-to-target vectors, world frame
     lateral: Floats  #: (n, T, 3) each target's width axis as seen by each robot
-    rays: Floats  #: (n, S, 3) camera-to-sample vectors, world frame
-    sample_ok: Bools  #: (n, S) sample inside the field of view
-    order: Ints  #: (T,) scratch: one class's candidates, nearest first
+    rays: Floats  #: (n, S, 3) camera-to-sample vectors, world frame (zero: not cast)
+    sample_ok: Bools  #: (n, S) sample inside the field of view (and of a candidate)
+    order: Ints  #: (3, T) scratch: each class's candidates found so far, nearest first
     ray_geom: npt.NDArray[np.int32]  #: (1,) geom hit by the last ray
+
+
+class UniformGrid(NamedTuple):
+    """Items (targets or geoms) binned by their (x, y) into square cells, rebuilt each step.
+
+    Cells cover the square [origin, origin + side * cell]²; an item outside it is binned into
+    the nearest edge cell, so every item is in exactly one cell.
+    """
+
+    origin: float  #: m, the grid's lower x and y
+    cell: float  #: m, side of a cell
+    side: int  #: cells per row and per column
+    members: Ints  #: (K,) the items binned (target or geom indices)
+    start: Ints  #: (side² + 1,) where each cell's items begin in ``items``
+    cursor: Ints  #: (side²,) scratch of the binning
+    items: Ints  #: (K,) the binned items, cell by cell, in ascending order within a cell
+
+
+class RayCulling(NamedTuple):
+    """What :func:`first_hit` needs to cast a ray at the geoms near it only (G geoms)."""
+
+    geom_size: Floats  #: (G, 3) ``MjModel.geom_size``
+    geom_type: Ints  #: (G,) ``MjModel.geom_type``
+    geom_rbound: Floats  #: (G,) m, radius of each geom's bounding sphere
+    geom_bodyid: Ints  #: (G,) body of each geom (a ray ignores its robot's chassis body)
+    geom_matid: Ints  #: (G,) material of each geom, -1 for none
+    geom_rgba: npt.NDArray[np.float32]  #: (G, 4) view of ``MjModel.geom_rgba`` (alpha 0 hides)
+    mat_rgba: npt.NDArray[np.float32]  #: (nmat, 4) view of ``MjModel.mat_rgba``
+    in_group: Bools  #: (G,) the geom's group is one the rays see (``TargetTable.geom_groups``)
+    primitive: Bools  #: (G,) a type ``mju_rayGeom`` intersects (:data:`PRIMITIVE_GEOMS`)
+    always: Ints  #: geoms every ray tests (planes, which are unbounded, and very large geoms)
+    reach: float  #: m, the largest bounding radius of the binned geoms, plus a margin
+    cull: bool  #: use :func:`first_hit`; False: ``mj_ray`` (as fast where geoms are few)
+
+
+class SceneIndex(NamedTuple):
+    """The grids of :func:`nearest`'s search and of its rays, and the search's scratch."""
+
+    targets: UniformGrid  #: every target, by its centre
+    geoms: UniformGrid  #: every geom that can hide a target, except ``rays.always``
+    rays: RayCulling
+    found: Ints  #: (3,) scratch: candidates found per class
+    tried: Ints  #: (3,) scratch: candidates tried per class
+    done: Bools  #: (3,) scratch: the class's answer is known
+    ring: Ints  #: (T,) scratch: the targets of one ring of cells
+    near: Ints  #: (G,) scratch: the geoms one ray tests
 
 
 class NearestTargets(NamedTuple):
@@ -179,11 +242,15 @@ class MergeBuffers(NamedTuple):
     #: (n_packs,) each pack's state (``World.pack_active``; the packs are the last targets): an
     #: inactive pack is dark, so it hides a pack behind it as any other body does
     pack_active: Bools
+    listed: Ints  #: (T,) scratch: one robot's seen targets, in ascending order
+    nearest: Ints  #: (T,) scratch: the nearest member of each group (by its root)
+    members: Ints  #: (T,) scratch: the members of each group (by its root)
+    reach: Floats  #: (T,) scratch: how far each group's blob reaches (by its root)
 
 
 class GeometricScene(NamedTuple):
     """Everything :func:`nearest` reads: the poses, the constants, the LEDs and packs, the
-    scratch."""
+    scratch and the grids."""
 
     poses: MujocoPoses
     targets: TargetTable
@@ -191,6 +258,7 @@ class GeometricScene(NamedTuple):
     led_on: Bools  #: (n,) each robot's LED state (a dark LED is not a green target)
     pack_active: Bools  #: (n_packs,) each pack's state (an inactive pack is not a blue target)
     front: FrontBuffers
+    grids: SceneIndex
 
 
 # --- MuJoCo's ray cast, for compiled code and for the reference ------------------------------
@@ -243,7 +311,22 @@ def _reference_mj_ray() -> Any:
     return function
 
 
+def _compiled_ray_geom() -> Any:
+    """``mju_rayGeom`` as a numba external function (None if unusable), pointers as integers
+    as in :func:`_compiled_mj_ray`."""
+    if not _LIBRARY:
+        return None
+    try:
+        from numba import types
+    except ImportError:  # pragma: no cover - numba is a dependency
+        return None
+    i64 = types.int64
+    signature = types.float64(i64, i64, i64, i64, i64, types.int32, i64)
+    return types.ExternalFunction("mju_rayGeom", signature)
+
+
 _MJ_RAY = _compiled_mj_ray()
+_MJ_RAY_GEOM = _compiled_ray_geom()
 _MJ_RAY_REFERENCE = _reference_mj_ray()
 _ROW = 24  # bytes of one (3,) float64 point or direction
 
@@ -444,6 +527,53 @@ def _sample(targets: TargetTable, camera: CameraModel, f: FrontBuffers, i: int, 
     f.sample_ok[i, s] = inside
 
 
+@jit_inline
+def _place(
+    targets: TargetTable, camera: CameraModel, led_on: Bools, pack_active: Bools,
+    f: FrontBuffers, i: int, listed: Ints, count: int,
+) -> None:  # fmt: skip
+    """Targets ``listed[:count]`` in robot ``i``'s camera frame (``diff``, ``local``,
+    ``bearing``, ``distance``), and in ``candidate`` whether each could be seen if it were
+    large enough: in range, not the robot's own, a lit LED, an active pack, a plate whose
+    front or side the camera faces.
+
+    A list, not one target per call: a compiled helper's named buffers are counted as
+    references at every call, which costs more than placing one target.
+    """
+    r = f.rot[i]
+    n = f.cam.shape[0]
+    first_pack = f.centre.shape[0] - pack_active.shape[0]
+    for k in range(count):
+        t = listed[k]
+        d0 = f.centre[t, 0] - f.cam[i, 0]
+        d1 = f.centre[t, 1] - f.cam[i, 1]
+        d2 = f.centre[t, 2] - f.cam[i, 2]
+        f.diff[i, t, 0] = d0
+        f.diff[i, t, 1] = d1
+        f.diff[i, t, 2] = d2
+        # Camera frame: x_j = sum_k R_kj d_k.
+        l0 = d0 * r[0] + d1 * r[3] + d2 * r[6]
+        l1 = d0 * r[1] + d1 * r[4] + d2 * r[7]
+        f.local[i, t, 0] = l0
+        f.local[i, t, 1] = l1
+        f.local[i, t, 2] = d0 * r[2] + d1 * r[5] + d2 * r[8]
+        dist = math.hypot(l0, l1)
+        f.bearing[i, t] = math.atan2(l1, l0)
+        f.distance[i, t] = dist
+        ok = dist <= camera.max_range and not targets.own[i, t]
+        if t < n and not led_on[t]:
+            ok = False  # a dark LED is not a green target
+        if t >= first_pack and not pack_active[t - first_pack]:
+            ok = False  # an inactive pack is dark: not a blue target
+        if ok and targets.plate[t]:  # a plate shows its front, or its side edge-on
+            g = f.gmat[t]  # its x axis is the plate's normal, its y axis its width
+            x_cam = -(d0 * g[0] + d1 * g[3] + d2 * g[6])
+            y_cam = -(d0 * g[1] + d1 * g[4] + d2 * g[7])
+            in_front = x_cam > targets.depth_front[t]
+            ok = in_front or _edge_on(targets, t, x_cam, y_cam)
+        f.candidate[i, t] = ok
+
+
 @jit
 def front(
     targets: TargetTable, camera: CameraModel, led_on: Bools, pack_active: Bools,
@@ -451,55 +581,34 @@ def front(
 ) -> None:  # fmt: skip
     """Fill ``f``'s per-(robot, target) and per-(robot, sample) buffers from its poses.
 
-    With ``every_target`` False, only what costs nothing is filled, for :func:`nearest` to
-    compute the rest of the targets it reaches: each target's position (``diff``, ``local``,
-    ``bearing``, ``distance``) and in ``candidate`` whether it could be seen *if it were large
-    enough* (in range, not the robot's own, a lit LED, a plate whose front or side the camera
-    faces).
+    With ``every_target`` False, only what costs nothing is filled: each target's position
+    (``diff``, ``local``, ``bearing``, ``distance``) and in ``candidate`` whether it could be
+    seen *if it were large enough* (in range, not the robot's own, a lit LED, a plate whose
+    front or side the camera faces). With it True, also each target's projected size (a
+    candidate must also be large enough), and the occlusion samples of the candidates (a
+    target that cannot be seen gets no rays: its ``rays`` are zero, its ``sample_ok`` False).
 
     A dark LED (``led_on``) and an inactive pack (``pack_active``, the last targets) are no
     target of their colour; they still hide what is behind them (the rays hit their geoms).
     """
     n = f.cam.shape[0]
     n_t = f.centre.shape[0]
-    n_s = targets.sample_target.shape[0]
-    first_pack = n_t - pack_active.shape[0]
     for i in range(n):
-        r = f.rot[i]
-        for t in range(n_t):
-            d0 = f.centre[t, 0] - f.cam[i, 0]
-            d1 = f.centre[t, 1] - f.cam[i, 1]
-            d2 = f.centre[t, 2] - f.cam[i, 2]
-            f.diff[i, t, 0] = d0
-            f.diff[i, t, 1] = d1
-            f.diff[i, t, 2] = d2
-            # Camera frame: x_j = sum_k R_kj d_k.
-            l0 = d0 * r[0] + d1 * r[3] + d2 * r[6]
-            l1 = d0 * r[1] + d1 * r[4] + d2 * r[7]
-            f.local[i, t, 0] = l0
-            f.local[i, t, 1] = l1
-            f.local[i, t, 2] = d0 * r[2] + d1 * r[5] + d2 * r[8]
-            dist = math.hypot(l0, l1)
-            f.bearing[i, t] = math.atan2(l1, l0)
-            f.distance[i, t] = dist
-            ok = dist <= camera.max_range and not targets.own[i, t]
-            if t < n and not led_on[t]:
-                ok = False  # a dark LED is not a green target
-            if t >= first_pack and not pack_active[t - first_pack]:
-                ok = False  # an inactive pack is dark: not a blue target
-            if ok and targets.plate[t]:  # a plate shows its front, or its side edge-on
-                g = f.gmat[t]  # its x axis is the plate's normal, its y axis its width
-                x_cam = -(d0 * g[0] + d1 * g[3] + d2 * g[6])
-                y_cam = -(d0 * g[1] + d1 * g[4] + d2 * g[7])
-                in_front = x_cam > targets.depth_front[t]
-                ok = in_front or _edge_on(targets, t, x_cam, y_cam)
-            if every_target:
-                area = _project(targets, camera, f, i, t)
-                ok = ok and area >= targets.min_area[t]
-            f.candidate[i, t] = ok
+        _place(targets, camera, led_on, pack_active, f, i, targets.ids, n_t)
         if every_target:
-            for s in range(n_s):
-                _sample(targets, camera, f, i, s)
+            for t in range(n_t):
+                area = _project(targets, camera, f, i, t)
+                f.candidate[i, t] = f.candidate[i, t] and area >= targets.min_area[t]
+            for t in range(n_t):
+                candidate = f.candidate[i, t]
+                for s in range(targets.sample_start[t], targets.sample_end[t]):
+                    if candidate:
+                        _sample(targets, camera, f, i, s)
+                    else:  # no ray is cast at a target that cannot be seen
+                        f.rays[i, s, 0] = 0.0
+                        f.rays[i, s, 1] = 0.0
+                        f.rays[i, s, 2] = 0.0
+                        f.sample_ok[i, s] = False
 
 
 def _view_offset(camera: CameraModel, bearing: Floats) -> tuple[Ints, Floats]:
@@ -514,7 +623,8 @@ def front_reference(
     targets: TargetTable, camera: CameraModel, led_on: Bools, pack_active: Bools,
     f: FrontBuffers, every_target: bool,
 ) -> None:  # fmt: skip
-    """:func:`front` in vectorised numpy (it fills every target whatever ``every_target``)."""
+    """:func:`front` in vectorised numpy (it fills every target and sample whatever
+    ``every_target``, and ``sample_ok`` only for the candidates)."""
     n = f.cam.shape[0]
     rot = f.rot.reshape(n, 3, 3)
     gmat = f.gmat.reshape(-1, 3, 3)
@@ -612,31 +722,199 @@ def front_reference(
         _, ray_offset = _view_offset(camera, np.arctan2(ray_local[..., 1], ray_local[..., 0]))
         v = tan_el / np.cos(ray_offset)
         inside = (v >= camera.v_bottom) & (v <= camera.v_top)
-    f.sample_ok[...] = inside
+    # No ray is cast at a target that cannot be seen.
+    np.logical_and(inside, candidate[:, st], out=f.sample_ok)
+    rays[~candidate[:, st]] = 0.0
+
+
+# --- grids and culled rays ---------------------------------------------------------------------
+#: m, how much farther than its bounding sphere a geom is still tested by a ray, and how much a
+#: search bound is lowered: rounding is some 1e-16 m here, so the margin only makes the tests
+#: conservative, never exact to the last bit.
+CULL_MARGIN = 1e-6
+
+
+@jit_inline
+def _grid_cell(origin: float, cell: float, side: int, x: float) -> int:
+    """The column (or row) of coordinate ``x`` in a grid of ``side`` cells of ``cell`` from
+    ``origin``, clamped to the grid (NaN: the first). Scalars, not the grid: a helper's named
+    buffers are counted as references at every call."""
+    k = (x - origin) / cell
+    if not k >= 0.0:
+        return 0
+    if k >= side:
+        return side - 1
+    return int(k)
+
+
+@jit_inline
+def _bin(grid: UniformGrid, positions: Floats) -> None:
+    """Bin ``grid.members`` by their (x, y) in ``positions`` (a counting sort: the items of a
+    cell stay in ascending order)."""
+    origin, cell, side = grid.origin, grid.cell, grid.side
+    for c in range(side * side + 1):
+        grid.start[c] = 0
+    for k in range(grid.members.shape[0]):
+        item = grid.members[k]
+        column = _grid_cell(origin, cell, side, positions[item, 0])
+        c = column + side * _grid_cell(origin, cell, side, positions[item, 1])
+        grid.start[c + 1] += 1
+    for c in range(side * side):
+        grid.start[c + 1] += grid.start[c]
+        grid.cursor[c] = grid.start[c]
+    for k in range(grid.members.shape[0]):
+        item = grid.members[k]
+        column = _grid_cell(origin, cell, side, positions[item, 0])
+        c = column + side * _grid_cell(origin, cell, side, positions[item, 1])
+        grid.items[grid.cursor[c]] = item
+        grid.cursor[c] += 1
+
+
+@jit_inline
+def first_hit(
+    poses: MujocoPoses, grids: SceneIndex, groups: npt.NDArray[np.uint8], exclude: int,
+    p: Floats, v: Floats, pnt: np.int64, vec: np.int64, hit: npt.NDArray[np.int32],
+) -> int:  # fmt: skip
+    """The geom that ``mj_ray`` hits first on the ray p + x v (``pnt``, ``vec``: the
+    addresses of ``p`` and ``v``), ignoring body ``exclude``: the same geom, found by testing
+    only the geoms near the segment x in [0, 1]. Also written to ``hit[0]``.
+
+    ``mj_ray`` returns the nearest hit of every geom it does not eliminate (the excluded body,
+    transparent geoms or materials, groups not in ``groups``), each intersected by
+    ``mju_rayGeom``, ties to the lowest geom id. Here the geoms tested are those every ray
+    tests (``rays.always``) and the binned geoms whose bounding sphere (plus
+    :data:`CULL_MARGIN`) meets the segment, found in the grid cells the segment passes within
+    ``rays.reach`` of. A geom whose bounding sphere misses the segment has no surface point on
+    it, so if the nearest hit found lies on the segment (x <= 1) no other geom can be hit
+    before it, and it is ``mj_ray``'s answer. The rays of the geometric vision aim at a point
+    inside their target, so they hit something on the segment; if not (or a geom found is no
+    primitive), ``mj_ray`` itself answers.
+    """
+    rays, grid = grids.rays, grids.geoms
+    near = grids.near
+    origin, cell, side = grid.origin, grid.cell, grid.side
+    count = 0
+    for k in range(rays.always.shape[0]):
+        near[count] = rays.always[k]
+        count += 1
+    reach = rays.reach
+    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    x0, x1 = p[0], p[0] + v[0]
+    first = _grid_cell(origin, cell, side, min(x0, x1) - reach)
+    last = _grid_cell(origin, cell, side, max(x0, x1) + reach)
+    for column in range(first, last + 1):
+        # The part of the segment within reach of this column (an edge column holds
+        # everything beyond the grid too).
+        low, high = -math.inf, math.inf
+        if column > 0:
+            low = origin + column * cell - reach
+        if column < side - 1:
+            high = origin + (column + 1) * cell + reach
+        a, b = 0.0, 1.0
+        if v[0] != 0.0:
+            a, b = (low - x0) / v[0], (high - x0) / v[0]
+            a, b = max(min(a, b), 0.0), min(max(a, b), 1.0)
+            if a > b:
+                continue
+        elif not low <= x0 <= high:
+            continue
+        ya, yb = p[1] + a * v[1], p[1] + b * v[1]
+        bottom = _grid_cell(origin, cell, side, min(ya, yb) - reach)
+        top = _grid_cell(origin, cell, side, max(ya, yb) + reach)
+        for row in range(bottom, top + 1):
+            c = column + side * row
+            for slot in range(grid.start[c], grid.start[c + 1]):
+                g = grid.items[slot]
+                # Does the segment come within the geom's bounding sphere?
+                c0 = poses.geom_xpos[g, 0] - p[0]
+                c1 = poses.geom_xpos[g, 1] - p[1]
+                c2 = poses.geom_xpos[g, 2] - p[2]
+                x = min(max((c0 * v[0] + c1 * v[1] + c2 * v[2]) / vv, 0.0), 1.0)
+                q0, q1, q2 = x * v[0] - c0, x * v[1] - c1, x * v[2] - c2
+                radius = rays.geom_rbound[g] + CULL_MARGIN
+                if q0 * q0 + q1 * q1 + q2 * q2 <= radius * radius:
+                    near[count] = g
+                    count += 1
+    # mj_ray's own test of each geom found, nearest hit first, ties to the lower geom id.
+    base_pos = np.int64(poses.geom_xpos.ctypes.data)
+    base_mat = np.int64(poses.geom_xmat.ctypes.data)
+    base_size = np.int64(rays.geom_size.ctypes.data)
+    row_size, frame_size = np.int64(_ROW), np.int64(3 * _ROW)
+    best, best_geom, fallback = -1.0, -1, False
+    for k in range(count):
+        g = near[k]
+        if rays.geom_bodyid[g] == exclude or not rays.in_group[g]:
+            continue
+        mat = rays.geom_matid[g]
+        alpha = rays.geom_rgba[g, 3] if mat < 0 else rays.mat_rgba[mat, 3]
+        if alpha == 0:
+            continue
+        if not rays.primitive[g]:
+            fallback = True
+            continue
+        x = _MJ_RAY_GEOM(
+            base_pos + g * row_size, base_mat + g * frame_size, base_size + g * row_size, pnt,
+            vec, np.int32(rays.geom_type[g]), np.int64(0),
+        )  # fmt: skip
+        if x >= 0.0 and (best < 0.0 or x < best or (x == best and g < best_geom)):
+            best, best_geom = x, g
+    if fallback or best < 0.0 or best > 1.0:
+        _MJ_RAY(
+            poses.model_address, poses.data_address, pnt, vec, np.int64(groups.ctypes.data),
+            np.uint8(1), np.int32(exclude), np.int64(hit.ctypes.data), np.int64(0),
+        )  # fmt: skip
+    else:
+        hit[0] = best_geom
+    return int(hit[0])
 
 
 # --- nearest -----------------------------------------------------------------------------------
 @jit_inline
 def nearest(scene: GeometricScene, out: NearestTargets) -> None:
-    """:func:`gather`, :func:`front`, then each robot's nearest visible target of each class.
+    """:func:`gather`, then each robot's nearest visible target of each class.
 
     Each class's possible targets are tried nearest first (ties to the lower index); a target's
-    projected size, then its samples, then its occlusion rays are computed only when it is
-    reached, and the rays stop as soon as its visibility is certain either way.
+    position, then its projected size, its samples and its occlusion rays are computed only
+    when it is reached, and the rays stop as soon as its visibility is certain either way.
+
+    Targets are reached through a uniform grid (``scene.grids.targets``), ring of cells by ring
+    around the robot's cell (rings 0 and 1 at once). A target in a cell k + 1 or more rings out
+    lies more than k cells away along x or y, so its horizontal distance h exceeds k * cell; in
+    the camera's frame, tilted by theta from the vertical, its distance is at least
+    h cos(theta) - |dz| sin(theta), dz its height above the camera. So once ring k is placed,
+    every candidate up to k * cell * cos(theta) - max|dz| sin(theta) (less
+    :data:`CULL_MARGIN`) is certainly nearer than any target not placed yet, and is tried; the
+    search ends at the first visible candidate, when that bound passes the camera's range, or
+    when the rings cover the grid. The targets tried and their order are those of trying every
+    candidate nearest first: the answer is the same. In the paper's field the grid is 2 x 2
+    cells, so every target is placed before any is tried. The rays are :func:`first_hit`'s
+    where the world has many geoms (``grids.rays.cull``), else ``mj_ray``'s: the same geom.
+
+    Named buffers are counted as references at every call of a compiled helper, which costs
+    more than the work of one target: the helpers here take lists (:func:`_place`) or run
+    once per candidate or ray.
     """
-    poses, targets, f = scene.poses, scene.targets, scene.front
+    poses, targets, f, grids = scene.poses, scene.targets, scene.front, scene.grids
     camera = scene.camera
     gather(poses, targets, f)
-    front(targets, camera, scene.led_on, scene.pack_active, f, False)
+    _bin(grids.targets, f.centre)
+    _bin(grids.geoms, poses.geom_xpos)
     n = f.cam.shape[0]
+    n_t = f.centre.shape[0]
     n_s = f.rays.shape[1]
+    z_low, z_high = math.inf, -math.inf
+    for t in range(n_t):
+        z_low, z_high = min(z_low, f.centre[t, 2]), max(z_high, f.centre[t, 2])
     # mj_ray reads 3 doubles at each point/direction address. Addresses are signed 64-bit:
     # numba would turn uintp + int64 into a float.
     cam_ptr, rays_ptr = np.int64(f.cam.ctypes.data), np.int64(f.rays.ctypes.data)
     groups_ptr = np.int64(targets.geom_groups.ctypes.data)
     geom_ptr = np.int64(f.ray_geom.ctypes.data)
-    row = np.int64(_ROW)
-    null = np.int64(0)
+    row_size = np.int64(_ROW)
+    cull = grids.rays.cull
+    grid = grids.targets
+    side = grid.side
+    ring_list, found, tried, done = grids.ring, grids.found, grids.tried, grids.done
     order = f.order
     distance = f.distance
     for i in range(n):
@@ -644,51 +922,103 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
             out.visible[i, c] = False
             out.distance[i, c] = np.inf
             out.bearing[i, c] = 0.0
-            # This class's possible targets, nearest first (stable: ties to the lower index).
-            k = 0
-            for j in range(targets.class_count[c]):
-                t = targets.class_targets[c, j]
+            found[c] = 0
+            tried[c] = 0
+            done[c] = targets.class_count[c] == 0
+        cx = _grid_cell(grid.origin, grid.cell, side, f.cam[i, 0])
+        cy = _grid_cell(grid.origin, grid.cell, side, f.cam[i, 1])
+        cos_tilt = f.rot[i, 8]
+        sin_tilt = math.sqrt(max(1.0 - cos_tilt * cos_tilt, 0.0))
+        dz = max(z_high - f.cam[i, 2], f.cam[i, 2] - z_low, 0.0)
+        rings = max(cx, side - 1 - cx, cy, side - 1 - cy)
+        exclude = targets.exclude_body[i]
+        # Ring 0 alone bounds nothing (its bound is below 0): the search starts with rings 0
+        # and 1 together.
+        ring = 1
+        while not (done[0] and done[1] and done[2]):
+            # The targets of the ring's cells (rows ``ring`` away whole, the rows between
+            # only at their two ends; the first time, every cell within 1), of the classes
+            # still open.
+            listed = 0
+            for row in range(max(cy - ring, 0), min(cy + ring, side - 1) + 1):
+                whole = ring == 1 or row == cy - ring or row == cy + ring
+                for column in range(max(cx - ring, 0), min(cx + ring, side - 1) + 1):
+                    if not whole and column != cx - ring and column != cx + ring:
+                        continue
+                    c = column + side * row
+                    for slot in range(grid.start[c], grid.start[c + 1]):
+                        t = grid.items[slot]
+                        if not done[targets.target_cls[t]]:
+                            ring_list[listed] = t
+                            listed += 1
+            _place(targets, camera, scene.led_on, scene.pack_active, f, i, ring_list, listed)
+            # Each candidate joins its class's list, by distance then index.
+            for k in range(listed):
+                t = ring_list[k]
                 if not f.candidate[i, t]:
                     continue
-                p = k
-                while p > 0 and distance[i, order[p - 1]] > distance[i, t]:
-                    order[p] = order[p - 1]
+                cls = targets.target_cls[t]
+                d = distance[i, t]
+                p = found[cls]
+                while p > tried[cls]:
+                    u = order[cls, p - 1]
+                    if distance[i, u] < d or (distance[i, u] == d and u < t):
+                        break
+                    order[cls, p] = u
                     p -= 1
-                order[p] = t
-                k += 1
-            for j in range(k):
-                t = order[j]
-                full, need = _project(targets, camera, f, i, t), targets.min_area[t]
-                if not full >= need:  # too small to be seen even in full
-                    f.candidate[i, t] = False
-                    continue
-                step = targets.inv_samples[t]
-                first, end = targets.sample_start[t], targets.sample_end[t]
-                left = 0
-                for s in range(first, end):
-                    _sample(targets, camera, f, i, s)
-                    left += f.sample_ok[i, s]
-                hits = 0
-                seen = full * (hits * step) >= need
-                while not seen and left > 0 and full * ((hits + left) * step) >= need:
-                    s = first
-                    while not f.sample_ok[i, s]:
-                        s += 1
-                    first = s + 1
-                    left -= 1
-                    _MJ_RAY(
-                        poses.model_address, poses.data_address, cam_ptr + i * row,
-                        rays_ptr + (i * n_s + s) * row, groups_ptr, np.uint8(1),
-                        np.int32(targets.exclude_body[i]), geom_ptr, null,
-                    )  # fmt: skip
-                    if f.ray_geom[0] == targets.sample_geom[s]:
-                        hits += 1
-                        seen = full * (hits * step) >= need
-                if seen:
-                    out.visible[i, c] = True
-                    out.distance[i, c] = distance[i, t]
-                    out.bearing[i, c] = f.bearing[i, t]
-                    break
+                order[cls, p] = t
+                found[cls] += 1
+            everything = ring >= rings
+            bound = -math.inf
+            if cos_tilt > 0.0:
+                bound = ring * grid.cell * cos_tilt - dz * sin_tilt - CULL_MARGIN
+            for c in range(3):
+                while not done[c] and tried[c] < found[c]:
+                    t = order[c, tried[c]]
+                    if not (everything or distance[i, t] <= bound):
+                        break
+                    tried[c] += 1
+                    full, need = _project(targets, camera, f, i, t), targets.min_area[t]
+                    if not full >= need:  # too small to be seen even in full
+                        f.candidate[i, t] = False
+                        continue
+                    step = targets.inv_samples[t]
+                    first, end = targets.sample_start[t], targets.sample_end[t]
+                    left = 0
+                    for s in range(first, end):
+                        _sample(targets, camera, f, i, s)
+                        left += f.sample_ok[i, s]
+                    hits = 0
+                    seen = full * (hits * step) >= need
+                    while not seen and left > 0 and full * ((hits + left) * step) >= need:
+                        s = first
+                        while not f.sample_ok[i, s]:
+                            s += 1
+                        first = s + 1
+                        left -= 1
+                        pnt, vec = cam_ptr + i * row_size, rays_ptr + (i * n_s + s) * row_size
+                        if cull:
+                            hit = first_hit(
+                                poses, grids, targets.geom_groups, exclude, f.cam[i],
+                                f.rays[i, s], pnt, vec, f.ray_geom,
+                            )  # fmt: skip
+                        else:
+                            _MJ_RAY(
+                                poses.model_address, poses.data_address, pnt, vec, groups_ptr,
+                                np.uint8(1), np.int32(exclude), geom_ptr, np.int64(0),
+                            )  # fmt: skip
+                            hit = f.ray_geom[0]
+                        if hit == targets.sample_geom[s]:
+                            hits += 1
+                            seen = full * (hits * step) >= need
+                    if seen:
+                        out.visible[i, c] = True
+                        out.distance[i, c] = distance[i, t]
+                        out.bearing[i, c] = f.bearing[i, t]
+                        done[c] = True
+                if everything or bound > camera.max_range:
+                    done[c] = True
+            ring += 1
 
 
 def nearest_reference(scene: GeometricScene, out: NearestTargets) -> None:
@@ -855,18 +1185,24 @@ def merge(
     member (ties: the lower index).
     """
     n, n_t = m.seen.shape
-    group = m.group
+    group, listed = m.group, m.listed
     for i in range(n):
+        k = 0
         for t in range(n_t):
             group[t] = t
             m.merged[i, t] = False
             m.spread[i, t] = 0.0
+            if m.seen[i, t]:
+                listed[k] = t
+                k += 1
+        # Pairs of seen targets only: the work grows with what a robot sees, not with the
+        # colony (the seen list is in ascending order, as the targets are).
         joined = False
-        for a in range(n_t):
-            if not m.seen[i, a]:
-                continue
-            for b in range(n_t):
-                if not m.seen[i, b] or rules.target_cls[a] != rules.target_cls[b]:
+        for ia in range(k):
+            a = listed[ia]
+            for ib in range(k):
+                b = listed[ib]
+                if rules.target_cls[a] != rules.target_cls[b]:
                     continue
                 if not f.distance[i, a] < f.distance[i, b]:
                     continue
@@ -884,33 +1220,40 @@ def merge(
                 joined = True
         if not joined:
             continue
-        for t in range(n_t):  # resolve every target to its root
+        # Every group's root is its lowest member, a seen target; its nearest member (ties:
+        # the lower index) survives.
+        for j in range(k):
+            t = listed[j]
             root = t
             while group[root] != root:
                 root = group[root]
             group[t] = root
+            m.nearest[root], m.members[root], m.reach[root] = -1, 0, 0.0
+        for j in range(k):
+            t = listed[j]
+            root = group[t]
+            m.members[root] += 1
+            if m.nearest[root] < 0 or f.distance[i, t] < f.distance[i, m.nearest[root]]:
+                m.nearest[root] = t
         px_angle = _TWO_PI / rules.strip_width
-        for root in range(n_t):
-            if group[root] != root or not m.seen[i, root]:
+        for j in range(k):
+            t = listed[j]
+            root = group[t]
+            if m.members[root] < 2:
                 continue
-            nearest, count = -1, 0
-            for t in range(n_t):
-                if group[t] == root and m.seen[i, t]:
-                    count += 1
-                    if nearest < 0 or f.distance[i, t] < f.distance[i, nearest]:
-                        nearest = t
-            if count < 2:
+            nearest = m.nearest[root]
+            if t != nearest:
+                m.merged[i, t] = True
+            half = 0.5 * (f.right_px[i, t] - f.left_px[i, t]) * px_angle
+            off = abs(_wrap_compiled(f.bearing[i, t] - f.bearing[i, nearest])) + half
+            m.reach[root] = max(m.reach[root], off)
+        for j in range(k):
+            root = listed[j]
+            if group[root] != root or m.members[root] < 2:
                 continue
+            nearest = m.nearest[root]
             own = 0.5 * (f.right_px[i, nearest] - f.left_px[i, nearest]) * px_angle
-            reach = 0.0
-            for t in range(n_t):
-                if group[t] == root and m.seen[i, t]:
-                    if t != nearest:
-                        m.merged[i, t] = True
-                    half = 0.5 * (f.right_px[i, t] - f.left_px[i, t]) * px_angle
-                    off = abs(_wrap_compiled(f.bearing[i, t] - f.bearing[i, nearest])) + half
-                    reach = max(reach, off)
-            m.spread[i, nearest] = max(reach - own, 0.0)
+            m.spread[i, nearest] = max(m.reach[root] - own, 0.0)
 
 
 def merge_reference(
@@ -1022,6 +1365,7 @@ def merge_reference(
 
 __all__ = [
     "UNAVAILABLE_REASON",
+    "PRIMITIVE_GEOMS",
     "VERIFIED_MUJOCO",
     "CameraModel",
     "FrontBuffers",
@@ -1030,7 +1374,11 @@ __all__ = [
     "MergeRules",
     "MujocoPoses",
     "NearestTargets",
+    "RayCulling",
+    "SceneIndex",
     "TargetTable",
+    "UniformGrid",
+    "first_hit",
     "front",
     "front_reference",
     "gather",

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
-from cyber_rodent.vision.config import CameraConfig
+from cyber_rodent.vision.config import CameraConfig, camera_for_field
 from cyber_rodent.vision.detections import (
     apply_noise,
     frame_from_detections,
@@ -49,7 +49,8 @@ class RenderedVision:
 
     Args:
         world: the world to observe (bound: every call renders its current state).
-        config: the camera.
+        config: the camera (default: :func:`~cyber_rodent.vision.config.camera_for_field` of
+            the world's field).
         rng: generator for the noise model; required only if ``config.noise`` is enabled.
         renderer: ``"auto"``, ``"batch"`` or ``"mujoco"`` (see the module docstring).
         backend: ``"numba"`` (compiled kernels) or ``"numpy"`` (their references), passed to
@@ -77,7 +78,7 @@ class RenderedVision:
             egl = os.environ.get("MUJOCO_GL", "egl").lower() == "egl"
             renderer = "batch" if egl else "mujoco"
         self.world = world
-        self.config = config or CameraConfig()
+        self.config = config or camera_for_field(world.config.field_size)
         if self.config.noise.enabled and rng is None:
             raise ValueError("config.noise is enabled, so pass rng=np.random.Generator")
         self.rng = rng

@@ -51,7 +51,7 @@ def save_omni_png(
         world: the world (its current ``MjData`` state is rendered; nothing is stepped).
         robot: index of the robot whose camera to show.
         out_path: where to write the PNG (parent directories are created).
-        config: the camera (default :class:`CameraConfig`).
+        config: the camera (default: the world's field's, :func:`camera_for_field`).
 
     Returns:
         The path written.

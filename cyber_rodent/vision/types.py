@@ -13,12 +13,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cyber_rodent import constants as C
+
 LED, FACE, BATTERY = 0, 1, 2
 CLASS_NAMES = ("led", "face", "battery")
 N_CLASSES = 3
 
-#: Distances at or beyond this are "not seen" for normalisation (the field's diagonal, 3.25 m).
-DEFAULT_MAX_DISTANCE = 2.3 * math.sqrt(2)
+#: m, the paper field's diagonal (2.3 m x sqrt(2) = 3.25 m). The inputs normalise distances by
+#: it in any field (docs/design.md §9.19: the shipped behaviours learned on it), and it is the
+#: camera's default range (``CameraConfig.max_range``) in the paper's field.
+DEFAULT_MAX_DISTANCE = C.FIELD_SIZE * math.sqrt(2)
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,8 @@ must use one set of numbers, so :class:`RunConfig` derives the survival config f
 evolution config when none is given and otherwise insists that the two agree; likewise the
 world's robot count is the evolution config's ``n_robots``. A user changes a number in one
 place, and a contradictory combination is a clear ``ValueError`` instead of a silently
-inconsistent run.
+inconsistent run. The camera's range follows the world's field in the same way: by default it
+is the field's diagonal (``cyber_rodent.vision.follow_field``).
 """
 
 from __future__ import annotations
@@ -20,16 +21,18 @@ from typing import Any
 from cyber_rodent.profiles import HardwareProfile
 from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.validation import choice, validate_fields
-from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig
+from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig, camera_for_field, follow_field
 from cyber_rodent.world import WorldConfig
 from evolution.config import METHODS, EvolutionConfig
 
 #: Fields that EvolutionConfig and SurvivalConfig share; they must be equal in a run.
 SHARED_ENERGY_FIELDS = ("initial_energy", "max_energy", "max_recharge_steps")
 
-#: Default of the fields that follow ``evolution`` (``survival``, ``world``): "not given", so
-#: ``__post_init__`` derives them. After construction they always hold a config.
+#: Default of the fields that follow ``evolution`` (``survival``, ``world``) or the world
+#: (``camera``): "not given", so ``__post_init__`` derives them. After construction they always
+#: hold a config.
 _FROM_EVOLUTION: Any = None
+_FROM_WORLD: Any = None
 
 
 @dataclass(frozen=True)
@@ -43,7 +46,8 @@ class RunConfig:
             ``evolution`` if not given (the paper's defaults for everything else).
         world: the field (robots, packs, physics timestep); ``n_robots`` from ``evolution``
             and 5 packs if not given (the paper's simulation).
-        camera: the omnidirectional camera (default :class:`CameraConfig`).
+        camera: the omnidirectional camera; if not given, :class:`CameraConfig` with the
+            range of ``world``'s field (its diagonal: 3.25 m in the paper's field).
         vision: the vision provider, ``"geometric"`` (fast, the default for evolution runs) or
             ``"rendered"`` (the real off-screen camera; much slower).
         profile: optional hardware-like profile (:mod:`cyber_rodent.profiles`). The runner
@@ -61,7 +65,7 @@ class RunConfig:
     evolution: EvolutionConfig = field(default_factory=EvolutionConfig)
     survival: SurvivalConfig = _FROM_EVOLUTION
     world: WorldConfig = _FROM_EVOLUTION
-    camera: CameraConfig = field(default_factory=CameraConfig)
+    camera: CameraConfig = _FROM_WORLD
     vision: str = choice("geometric", PROVIDER_NAMES, source="docs/design.md §6")
     profile: HardwareProfile | None = None
 
@@ -91,7 +95,9 @@ class RunConfig:
                 f"world.n_robots ({self.world.n_robots}) must equal evolution.n_robots "
                 f"({evo.n_robots}): every physical robot carries one subpopulation"
             )
-        if not isinstance(self.camera, CameraConfig):
+        if self.camera is _FROM_WORLD:
+            object.__setattr__(self, "camera", camera_for_field(self.world.field_size))
+        elif not isinstance(self.camera, CameraConfig):
             raise ValueError(f"camera must be a CameraConfig, got {type(self.camera)!r}")
         if self.profile is not None:
             self._check_profile(self.profile)
@@ -123,6 +129,9 @@ class RunConfig:
         When ``evolution`` changes and ``survival`` or ``world`` are not passed, their shared
         fields (energy numbers, robot count) follow the new evolution config and every other
         field is kept, so ``config.replace(evolution=...)`` never produces a contradiction.
+        When the world's field changes and ``camera`` is not passed, a camera range that was
+        the old field's default becomes the new field's (``follow_field``); a range set by
+        hand is kept.
         """
         evo = changes.get("evolution")
         if isinstance(evo, EvolutionConfig):
@@ -131,6 +140,10 @@ class RunConfig:
                 changes["survival"] = dataclasses.replace(self.survival, **shared)
             if "world" not in changes:
                 changes["world"] = dataclasses.replace(self.world, n_robots=evo.n_robots)
+        world = changes.get("world")
+        if isinstance(world, WorldConfig) and "camera" not in changes:
+            old, new = self.world.field_size, world.field_size
+            changes["camera"] = follow_field(self.camera, old, new)
         return dataclasses.replace(self, **changes)
 
 
