@@ -73,13 +73,18 @@ from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
 from cyber_rodent.gym_env import (
     ACTION_KINDS,
     DEFAULT_MAX_WHEEL_SPEED,
-    OBSERVATION_NAMES,
-    OBSERVATION_UNITS,
     action_names,
     action_space,
     check_max_wheel_speed,
     decode_action,
-    observation_bounds,
+)
+from cyber_rodent.observations import (
+    OBSERVATION_NAMES,
+    OBSERVATION_UNITS,
+    ObservationBounds,
+    ObservationLimits,
+    check_observation,
+    nearest_frame,
     robot_observations,
 )
 from cyber_rodent.render import FieldRenderer, check_image_size
@@ -109,6 +114,8 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         n_robots: robots (agents), ≥ 1.
         n_packs: battery packs.
         action: ``"discrete"`` or ``"continuous"``.
+        observation: ``"normalised"`` (every entry in [0, 1]) or ``"raw"`` (physical units);
+            :mod:`cyber_rodent.observations`.
         survival: the survival rules (default: the paper's).
         max_cycles: control steps after which every agent is truncated, ≥ 1.
         dock_reward: reward of a captured battery.
@@ -137,6 +144,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         n_packs: int = TASK.field.packs,
         *,
         action: str = "discrete",
+        observation: str = "normalised",
         survival: SurvivalConfig | None = None,
         max_cycles: int = TASK.episode_steps,
         dock_reward: float = 1.0,
@@ -150,6 +158,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         backend: Backend = DEFAULT_BACKEND,
     ) -> None:
         self.action_kind = check_choice("action", action, ACTION_KINDS)
+        self.observation_kind = check_observation(observation)
         if survival is not None and not isinstance(survival, SurvivalConfig):
             raise ValueError(f"survival must be a SurvivalConfig, got {type(survival).__name__}")
         self.max_cycles = check_integer("max_cycles", max_cycles, 1, 10_000_000)
@@ -182,14 +191,15 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self.possible_agents = [agent_name(i) for i in range(n)]
         self.agents: list[str] = []
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
-        bounds = observation_bounds(self.world.range_max[0], self.max_range, rules)
+        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, rules)
         self.observation_names = OBSERVATION_NAMES
         self.observation_units = OBSERVATION_UNITS
+        self.observation_bounds: ObservationBounds = limits.bounds()
+        self.observation_scale = limits.scale()
         self.action_names = action_names(self.action_kind, SWITCHES)
         # One space object per agent, returned as is (PettingZoo seeds them per agent).
         self.observation_spaces = {
-            agent: spaces.Box(bounds.low, bounds.high, dtype=np.float32)
-            for agent in self.possible_agents
+            agent: limits.space(self.observation_kind) for agent in self.possible_agents
         }
         self.action_spaces = {
             agent: action_space(self.action_kind, SWITCHES, self.max_wheel_speed)
@@ -226,9 +236,9 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self.world.set_led(False)
         self.agents = list(self.possible_agents)
         self.steps = 0
-        frame = self.vision.observe()
+        frame = nearest_frame(self.vision)
         self.rewards.reset(frame)
-        states = robot_observations(self.survival, frame, self.max_range)
+        states = self._states(frame)
         observations = {agent: states[i].copy() for agent, i in self._index.items()}
         return observations, {agent: {} for agent in self.agents}
 
@@ -271,9 +281,9 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self.rewards.begin()
         events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
         self.steps += 1
-        frame: VisionFrame = self.vision.observe()
+        frame = nearest_frame(self.vision)
         reward = total_reward(self.rewards.end(events, frame, TASK.reached(events)))
-        states = robot_observations(self.survival, frame, self.max_range)
+        states = self._states(frame)
         truncate = self.steps >= self.max_cycles
         sw = self.survival
         observations: dict[str, np.ndarray] = {}
@@ -296,6 +306,13 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
             }
         self.agents = [a for a in self.agents if not (terminations[a] or truncations[a])]
         return observations, rewards, terminations, truncations, infos
+
+    def _states(self, frame: VisionFrame) -> np.ndarray:
+        """Every robot's observation (normalised unless ``observation="raw"``)."""
+        states = robot_observations(self.survival, frame, self.max_range)
+        if self.observation_kind == "normalised":
+            states = self.observation_scale.normalise(states)
+        return states
 
     def render(self) -> np.ndarray | None:
         """The top-down view of the field, (render_height, render_width, 3) uint8."""

@@ -126,9 +126,8 @@ the same seed and actions give the same trajectory, bit for bit.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, NamedTuple, SupportsFloat
+from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -137,6 +136,18 @@ from gymnasium import spaces
 from cyber_rodent import constants as C
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
 from cyber_rodent.commands import COMMAND_SPEEDS, N_COMMANDS
+from cyber_rodent.observations import (
+    N_OBSERVATIONS,
+    OBSERVATION_KINDS,
+    OBSERVATION_NAMES,
+    OBSERVATION_UNITS,
+    ObservationBounds,
+    ObservationLimits,
+    check_observation,
+    nearest_frame,
+    observation_bounds,
+    robot_observations,
+)
 from cyber_rodent.render import FieldRenderer, check_image_size
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
 from cyber_rodent.tasks.rewards import (
@@ -149,9 +160,6 @@ from cyber_rodent.tasks.rewards import (
 from cyber_rodent.tasks.spec import SURVIVAL, TaskSpec, task_names, task_spec
 from cyber_rodent.validation import check_boolean, check_choice, check_number
 from cyber_rodent.vision import (
-    BATTERY,
-    FACE,
-    LED,
     PROVIDER_NAMES,
     CameraConfig,
     VisionFrame,
@@ -176,84 +184,8 @@ DEFAULT_MAX_WHEEL_SPEED = 1.0
 #: A switch entry of a continuous action, in [-1, 1], is on above this.
 SWITCH_ON = 0.0
 
-_TARGETS = (("led", LED), ("face", FACE), ("battery", BATTERY))
-#: Observation names in vector order (see the module docstring).
-OBSERVATION_NAMES: tuple[str, ...] = (
-    *(name for name, _, _ in C.RANGE_SENSORS),
-    *(f"{target}_{part}" for target, _ in _TARGETS for part in ("bearing", "distance", "visible")),
-    "energy",
-    "led_on",
-    "docked",
-    "recharge_steps",
-)
-OBSERVATION_UNITS: tuple[str, ...] = (
-    *("m",) * C.N_RANGE,
-    *("rad", "m", "flag") * len(_TARGETS),
-    "energy",
-    "flag",
-    "flag",
-    "control steps",
-)
-N_OBSERVATIONS = len(OBSERVATION_NAMES)
-
 Observation = np.ndarray | dict[str, np.ndarray]
 PartnerPolicy = Callable[[Observation], Any]
-
-
-class ObservationBounds(NamedTuple):
-    """Per-entry bounds of the flat observation (float32, :data:`OBSERVATION_NAMES` order)."""
-
-    low: np.ndarray
-    high: np.ndarray
-
-
-def observation_bounds(
-    range_max: np.ndarray, max_range: float, survival: SurvivalConfig
-) -> ObservationBounds:
-    """The bounds of one robot's observation.
-
-    Args:
-        range_max: (8,) each range sensor's range, m (``World.range_max[0]``).
-        max_range: the camera's range, m (an unseen target's distance).
-        survival: the rules (``max_energy``, ``max_recharge_steps``).
-    """
-    low = np.zeros(N_OBSERVATIONS)
-    high = np.ones(N_OBSERVATIONS)
-    high[: C.N_RANGE] = range_max
-    for k in range(len(_TARGETS)):
-        col = C.N_RANGE + 3 * k
-        low[col], high[col] = -math.pi, math.pi
-        high[col + 1] = max_range
-    high[OBSERVATION_NAMES.index("energy")] = survival.max_energy
-    high[OBSERVATION_NAMES.index("recharge_steps")] = survival.max_recharge_steps
-    return ObservationBounds(low.astype(np.float32), high.astype(np.float32))
-
-
-def robot_observations(
-    survival: SurvivalWorld, frame: VisionFrame, max_range: float
-) -> np.ndarray:
-    """(n_robots, :data:`N_OBSERVATIONS`) float32: every robot's observation, a fresh array.
-
-    An unseen target has bearing 0, distance ``max_range`` and visible 0, as in the dm-control
-    tasks (:mod:`cyber_rodent.tasks.base`).
-    """
-    world = survival.world
-    obs = np.empty((world.config.n_robots, N_OBSERVATIONS), dtype=np.float32)
-    obs[:, : C.N_RANGE] = world.range_readings()
-    for k, (_, cls) in enumerate(_TARGETS):
-        col = C.N_RANGE + 3 * k
-        visible = frame.visible[:, cls]
-        obs[:, col] = np.where(visible, frame.bearing[:, cls], 0.0)
-        obs[:, col + 1] = np.where(
-            visible, np.minimum(frame.distance[:, cls], max_range), max_range
-        )
-        obs[:, col + 2] = visible
-    col = C.N_RANGE + 3 * len(_TARGETS)
-    obs[:, col] = survival.energy
-    obs[:, col + 1] = world.led_on
-    obs[:, col + 2] = survival.docked
-    obs[:, col + 3] = survival.recharge_steps
-    return obs
 
 
 # --- actions -------------------------------------------------------------------------------------
@@ -340,6 +272,8 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         action: ``"discrete"`` (the command table) or ``"continuous"`` (wheel speeds, m/s).
         reward: ``"sparse"`` (the task's success) or ``"shaped"`` (the behaviours' training
             reward; not for Survival).
+        observation: ``"normalised"`` (every entry of the state in [0, 1]) or ``"raw"``
+            (physical units); :mod:`cyber_rodent.observations`.
         pixels: add robot 0's omni strip to the observation (a ``Dict`` observation).
         masks: also add the strip's colour-segmentation masks (needs ``pixels``).
         vision: provider of the state's nearest LED, face and pack, ``"geometric"`` (as in
@@ -360,8 +294,13 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
     Attributes:
         task_spec: the task's spec (:class:`~cyber_rodent.tasks.spec.TaskSpec`), its ``gym``
             variant.
+        observation_kind: ``"normalised"`` or ``"raw"``.
         observation_names: the names of the state vector's entries.
-        observation_units: their units.
+        observation_units: the units of their raw values.
+        observation_bounds: the raw values' bounds (:class:`ObservationBounds`).
+        observation_scale: the normalisation (:class:`~cyber_rodent.observations.
+            ObservationScale`; ``observation_scale.raw(obs)`` turns a normalised state back
+            into physical units).
         action_names: the names of an action's entries.
         world, survival, vision: the simulation objects.
         steps: control steps of the current episode.
@@ -378,6 +317,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         *,
         action: str = "discrete",
         reward: str = "sparse",
+        observation: str = "normalised",
         pixels: bool = False,
         masks: bool = False,
         vision: str = "geometric",
@@ -397,6 +337,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.task = spec.name
         self.action_kind = check_choice("action", action, ACTION_KINDS)
         self.reward_kind = check_choice("reward", reward, REWARD_KINDS)
+        self.observation_kind = check_observation(observation)
         registered = [task_spec(name) for name in task_names()]
         if not spec.rewards(reward):
             offering = [other.title for other in registered if other.shaped]
@@ -470,10 +411,12 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.action_space = action_space(self.action_kind, switches, self.max_wheel_speed)
         self.action_names = action_names(self.action_kind, switches)
 
-        bounds = observation_bounds(self.world.range_max[0], self.max_range, rules)
+        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, rules)
         self.observation_names = OBSERVATION_NAMES
         self.observation_units = OBSERVATION_UNITS
-        state_space = spaces.Box(bounds.low, bounds.high, dtype=np.float32)
+        self.observation_bounds: ObservationBounds = limits.bounds()
+        self.observation_scale = limits.scale()
+        state_space = limits.space(self.observation_kind)
         if pixels:
             shape = (self.camera.height, self.camera.strip_width, 3)
             image = {"pixels": spaces.Box(0, 255, shape, dtype=np.uint8)}
@@ -521,7 +464,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         for _ in range(self.episode.max_start_draws):
             self.survival.reset(rng)
             self.world.set_led(self._led)
-            frame = self.vision.observe()
+            frame = nearest_frame(self.vision)
             if start is None or start.holds(frame):
                 break
         else:
@@ -549,7 +492,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.rewards.begin()
         events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
         self.steps += 1
-        self._frame = self.vision.observe()
+        self._frame = nearest_frame(self.vision)
         self.survival.collisions(out=self._collided)
         spec = self.task_spec
         success = spec.reached(events)
@@ -611,6 +554,8 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
     def _look(self) -> None:
         """Every robot's state vector, and the strips if the observation has pixels."""
         self._states = robot_observations(self.survival, self._frame, self.max_range)
+        if self.observation_kind == "normalised":
+            self._states = self.observation_scale.normalise(self._states)
         if self._pixels is not None and self._pixels is not self.vision:
             self._pixels.observe()
 
@@ -625,3 +570,27 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
             masks = self._pixels.segmenter.masks_from_classes(classes[robot])
             obs["masks"] = np.moveaxis(masks, 0, -1).copy()
         return obs
+
+
+__all__ = [
+    "ACTION_KINDS",
+    "DEFAULT_MAX_WHEEL_SPEED",
+    "N_OBSERVATIONS",
+    "OBSERVATION_KINDS",
+    "OBSERVATION_NAMES",
+    "OBSERVATION_UNITS",
+    "REWARD_KINDS",
+    "SURVIVAL_STEPS",
+    "SWITCH_ON",
+    "TASK_NAMES",
+    "CyberRodentEnv",
+    "Observation",
+    "ObservationBounds",
+    "PartnerPolicy",
+    "action_names",
+    "action_space",
+    "check_max_wheel_speed",
+    "decode_action",
+    "observation_bounds",
+    "robot_observations",
+]
