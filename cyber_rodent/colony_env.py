@@ -114,8 +114,8 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         n_robots: robots (agents), ≥ 1.
         n_packs: battery packs.
         action: ``"discrete"`` or ``"continuous"``.
-        observation: ``"normalised"`` (every entry in [0, 1]) or ``"raw"`` (physical units);
-            :mod:`cyber_rodent.observations`.
+        observation: ``"normalised"`` (in [0, 1], bearings in [−1, 1]) or ``"raw"``
+            (physical units); :mod:`cyber_rodent.observations`.
         survival: the survival rules (default: the paper's).
         max_cycles: control steps after which every agent is truncated, ≥ 1.
         dock_reward: reward of a captured battery.

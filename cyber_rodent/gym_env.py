@@ -272,7 +272,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         action: ``"discrete"`` (the command table) or ``"continuous"`` (wheel speeds, m/s).
         reward: ``"sparse"`` (the task's success) or ``"shaped"`` (the behaviours' training
             reward; not for Survival).
-        observation: ``"normalised"`` (every entry of the state in [0, 1]) or ``"raw"``
+        observation: ``"normalised"`` (the state in [0, 1], bearings in [−1, 1]) or ``"raw"``
             (physical units); :mod:`cyber_rodent.observations`.
         pixels: add robot 0's omni strip to the observation (a ``Dict`` observation).
         masks: also add the strip's colour-segmentation masks (needs ``pixels``).

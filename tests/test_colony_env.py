@@ -70,7 +70,9 @@ def test_the_default_observation_is_normalised() -> None:
     assert env.observation_kind == "normalised"
     space = env.observation_space("robot_1")
     assert isinstance(space, spaces.Box) and space.shape == (len(OBSERVATION_NAMES),)
-    assert (space.low == 0).all() and (space.high == 1).all() and space.dtype == np.float32
+    bearings = [index(f"{target}_bearing") for target in ("led", "face", "battery")]
+    assert (space.high == 1).all() and space.dtype == np.float32
+    assert (space.low[bearings] == -1).all() and np.delete(space.low, bearings).max() == 0
     for i, agent in enumerate(env.possible_agents):
         env.action_space(agent).seed(i)
         raw_env.action_space(agent).seed(i)

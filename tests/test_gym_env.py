@@ -119,34 +119,42 @@ def test_the_default_observation_is_normalised_by_the_bounds() -> None:
     assert env.observation_kind == "normalised"
     space = env.observation_space
     assert isinstance(space, gym.spaces.Box) and space.dtype == np.float32
-    assert space.shape == (21,) and (space.low == 0).all() and (space.high == 1).all()
+    bearings = [index(f"{target}_bearing") for target in ("led", "face", "battery")]
+    others = [i for i in range(21) if i not in bearings]
+    assert space.shape == (21,) and (space.high == 1).all()
+    assert (space.low[bearings] == -1).all() and (space.low[others] == 0).all()
     scale = env.observation_scale
     # The ranges read as proximities (0 = nothing in range, 1 = touching), the rest by bounds.
     assert scale.zero[index("range_front")] == 1.0 and scale.one[0] == 0.0
     assert scale.zero[index("range_back")] == 0.3
-    for target in ("led", "face", "battery"):
-        assert scale.zero[index(f"{target}_bearing")] == -math.pi
+    for target in ("led", "face", "battery"):  # bearings: 0 ahead, -1 and 1 behind
+        assert scale.zero[index(f"{target}_bearing")] == 0.0
         assert scale.one[index(f"{target}_bearing")] == math.pi
         assert scale.one[index(f"{target}_distance")] == CameraConfig().max_range
     assert scale.one[index("energy")] == 200.0 and scale.one[index("recharge_steps")] == 40.0
     raw = np.zeros(21, dtype=np.float32)
     raw[index("range_front")] = 0.25  # 0.25 of 1.0 m: proximity 0.75
     raw[index("range_back")] = 0.3  # nothing in range
-    raw[index("battery_bearing")] = math.pi / 2  # on the left: 0.75
+    raw[index("battery_bearing")] = math.pi / 2  # on the left: 0.5
+    raw[index("face_bearing")] = -3 * math.pi / 4  # behind on the right: -0.75
     raw[index("battery_distance")] = CameraConfig().max_range / 4
     raw[index("energy")] = 150.0
     raw[index("recharge_steps")] = 10.0
     normalised = scale.normalise(raw)
     assert normalised.dtype == np.float32
-    expected = {"range_front": 0.75, "range_back": 0.0, "range_left": 1.0, "led_bearing": 0.5,
-                "battery_bearing": 0.75, "battery_distance": 0.25, "energy": 0.75,
-                "recharge_steps": 0.25, "docked": 0.0}  # fmt: skip
+    expected = {"range_front": 0.75, "range_back": 0.0, "range_left": 1.0, "led_bearing": 0.0,
+                "battery_bearing": 0.5, "face_bearing": -0.75, "battery_distance": 0.25,
+                "energy": 0.75, "recharge_steps": 0.25, "docked": 0.0}  # fmt: skip
     for name, value in expected.items():
         assert normalised[index(name)] == pytest.approx(value, abs=1e-7), name
     assert np.allclose(scale.raw(normalised), raw, rtol=1e-6, atol=1e-7)
     # Beyond the bounds is clipped; a reversed entry reads +0.0, not -0.0.
     beyond = scale.normalise(np.full(21, 1e9))
     assert ((beyond == 0) | (beyond == 1)).all() and not np.signbit(beyond).any()
+    assert (beyond[:8] == 0).all() and (beyond[8:] == 1).all()  # ranges: nothing in range
+    below = scale.normalise(np.full(21, -1e9))
+    assert (below[:8] == 1).all() and np.array_equal(below[8:], space.low[8:])  # bearings -1
+    assert np.array_equal(scale.low, space.low) and np.array_equal(scale.high, space.high)
     # The endless energy of Forage, Mate and Search reads full.
     forage = CyberRodentEnv("forage")
     obs, _ = forage.reset(seed=0)
