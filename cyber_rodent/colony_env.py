@@ -25,11 +25,13 @@ field, wheels stopped and LED dark (an obstacle, as in the survival world). Ever
 truncated after ``max_cycles`` control steps (default 400, one agent lifetime of the paper).
 
 Observation (per agent): the flat ``Box((21,), float32)`` of the Gymnasium environments, same
-names, order, units and bounds (:data:`cyber_rodent.gym_env.OBSERVATION_NAMES`, documented in
-:mod:`cyber_rodent.gym_env`): 8 IR ranges (m), the nearest green LED, red face and blue pack
-(bearing rad, distance m, visible flag; the LED and the face are the other robots', what a colony
-agent needs to find a mate), own energy, LED state, docked flag and recharge step count. Energy
-is bounded by ``max_energy`` (200).
+names, order, units, bounds and normalisation (:mod:`cyber_rodent.observations`, the one table of
+them): 8 IR ranges, the nearest green LED, red face and blue pack (bearing, distance, visible
+flag; the LED and the face are the other robots', what a colony agent needs to find a mate), own
+energy, LED state, docked flag and recharge step count. Normalised by default
+(``observation="normalised"``: every entry in [0, 1] by its bounds, the ranges as proximities,
+the bearings in [−1, 1]; energy ``energy / max_energy``, 0.5 at birth); ``observation="raw"``
+gives physical units (m, rad, energy bounded by ``max_energy``, 200).
 
 Action (per agent; ``env.action_names``):
 

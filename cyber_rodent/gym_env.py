@@ -45,30 +45,38 @@ as the learner's) and returns an action of this environment's action space; pass
 being trained (for example ``lambda obs: model.predict(obs)[0]``) to train as the behaviours
 were. Without one the partner stands still, LED on, signalling Mate.
 
-Observation: ``Box((21,), float32)`` in raw physical units, names in
-``env.unwrapped.observation_names`` (units in ``observation_units``), the bounds in the space:
+Observation: ``Box((21,), float32)``, normalised by default (``observation="normalised"``):
+every entry mapped linearly by its bounds into [0, 1], the bearings into [−1, 1] (0 straight
+ahead); ``observation="raw"`` gives the same entries in physical units. Names in
+``env.unwrapped.observation_names``, raw units in ``observation_units``, raw bounds in
+``observation_bounds``, the normalisation in ``observation_scale``; the one table of them is
+:mod:`cyber_rodent.observations`:
 
-=======================================  ============================  ========================
-name                                     range                         unit
-=======================================  ============================  ========================
-``range_front``                          [0, 1.0]                      m, IR range (saturates)
-``range_front_left30``, ``..._right30``  [0, 0.3]                      m
-``range_front_left60``, ``..._right60``  [0, 0.3]                      m
-``range_back``, ``range_left``,          [0, 0.3]                      m
+=======================================  =====================  ================================
+name                                     raw                    normalised
+=======================================  =====================  ================================
+``range_front``                          [0, 1.0] m, IR range   proximity ``1 − range / 1.0``
+``range_front_left30``, ``..._right30``  [0, 0.3] m             proximity ``1 − range / 0.3``
+``range_front_left60``, ``..._right60``  [0, 0.3] m             as above
+``range_back``, ``range_left``,          [0, 0.3] m             as above
 ``range_right``
-``led_bearing``                          [−π, π]                       rad, + = left; 0 unseen
-``led_distance``                         [0, max_range (3.25)]         m; max_range unseen
-``led_visible``                          {0, 1}                        flag
-``face_bearing`` / ``_distance`` /       as the LED's                  nearest red face
+``led_bearing``                          [−π, π] rad, + left;   ``bearing / π`` in [−1, 1]
+                                         0 unseen
+``led_distance``                         [0, max_range] m;      ``distance / max_range``
+                                         max_range (3.25)
+                                         unseen
+``led_visible``                          {0, 1} flag            as is
+``face_bearing`` / ``_distance`` /       as the LED's           as the LED's (nearest red face)
 ``_visible``
-``battery_bearing`` / ``_distance`` /    as the LED's                  nearest battery pack
+``battery_bearing`` / ``_distance`` /    as the LED's           as the LED's (nearest pack)
 ``_visible``
-``energy``                               [0, max_energy]               virtual energy (1e6 in
-                                                                       Forage, Mate, Search)
-``led_on``                               {0, 1}                        own LED
-``docked``                               {0, 1}                        docked and recharging
-``recharge_steps``                       [0, max_recharge_steps (40)]  control steps
-=======================================  ============================  ========================
+``energy``                               [0, max_energy]        ``energy / max_energy``: 0.5 at
+                                         (200; 1e6 in Forage,   birth in Survival; 1 (full) in
+                                         Mate, Search)          Forage, Mate and Search
+``led_on``                               {0, 1} own LED         as is
+``docked``                               {0, 1} recharging      as is
+``recharge_steps``                       [0, 40] control steps  ``recharge_steps / 40``
+=======================================  =====================  ================================
 
 The range sensors are those of ``constants.RANGE_SENSORS`` in that order; the nearest LED, face
 and pack are the vision's (``camera.max_range`` is the field's diagonal by default).
@@ -101,13 +109,15 @@ Rewards (a float per step, robot 0's; the sum of the spec's named terms,
   geometric vision and the same placement, it equals ``BehaviourEpisode``'s reward of robot 0
   step by step (``tests/test_gym_env.py``). Survival has no training reward and refuses it.
 
-Pixels: ``pixels=True`` makes the observation a ``Dict`` with ``"state"`` (the vector above) and
-``"pixels"``, robot 0's omni strip as the camera renders it (``Box(0, 255, (height,
-n_views · view_width, 3), uint8)``, 192 × 512 by default; :mod:`cyber_rodent.vision.rendering`);
-``masks=True`` adds ``"masks"``, its colour segmentation (same shape, channel c is 255 on the
-pixels of class c: LED, face, battery; :mod:`cyber_rodent.vision.segmentation`). The state part
-still comes from ``vision`` (geometric by default), so pixels never change the dynamics or the
-reward.
+Pixels: ``pixels=True`` makes the observation a ``Dict`` with ``"state"`` (the vector above,
+normalised or raw) and ``"pixels"``, robot 0's omni strip as the camera renders it (``Box(0,
+255, (height, n_views · view_width, 3), uint8)``, 192 × 512 by default;
+:mod:`cyber_rodent.vision.rendering`); ``masks=True`` adds ``"masks"``, its colour segmentation
+(same shape, channel c is 255 on the pixels of class c: LED, face, battery;
+:mod:`cyber_rodent.vision.segmentation`). Images stay ``uint8`` in [0, 255] in either kind:
+image learners (Stable-Baselines3's ``CnnPolicy``, ``MultiInputPolicy``) recognise an image by
+that type and scale it to [0, 1] themselves. The state part still comes from ``vision``
+(geometric by default), so pixels never change the dynamics or the reward.
 
 ``info`` holds ``steps`` (control steps so far) and, after a step, ``collided`` (robot 0's body
 touches a wall, a pack or a robot), the task's measure (the spec's ``measure``): ``is_success``
