@@ -25,11 +25,13 @@ field, wheels stopped and LED dark (an obstacle, as in the survival world). Ever
 truncated after ``max_cycles`` control steps (default 400, one agent lifetime of the paper).
 
 Observation (per agent): the flat ``Box((21,), float32)`` of the Gymnasium environments, same
-names, order, units and bounds (:data:`cyber_rodent.gym_env.OBSERVATION_NAMES`, documented in
-:mod:`cyber_rodent.gym_env`): 8 IR ranges (m), the nearest green LED, red face and blue pack
-(bearing rad, distance m, visible flag; the LED and the face are the other robots', what a colony
-agent needs to find a mate), own energy, LED state, docked flag and recharge step count. Energy
-is bounded by ``max_energy`` (200).
+names, order, units, bounds and normalisation (:mod:`cyber_rodent.observations`, the one table of
+them): 8 IR ranges, the nearest green LED, red face and blue pack (bearing, distance, visible
+flag; the LED and the face are the other robots', what a colony agent needs to find a mate), own
+energy, LED state, docked flag and recharge step count. Normalised by default
+(``observation="normalised"``: every entry in [0, 1] by its bounds, the ranges as proximities,
+the bearings in [−1, 1]; energy ``energy / max_energy``, 0.5 at birth); ``observation="raw"``
+gives physical units (m, rad, energy bounded by ``max_energy``, 200).
 
 Action (per agent; ``env.action_names``):
 
@@ -79,13 +81,18 @@ from cyber_rodent.colony_baseline import BaselinePolicy, baseline_policy  # noqa
 from cyber_rodent.gym_env import (
     ACTION_KINDS,
     DEFAULT_MAX_WHEEL_SPEED,
-    OBSERVATION_NAMES,
-    OBSERVATION_UNITS,
     action_names,
     action_space,
     check_max_wheel_speed,
     decode_action,
-    observation_bounds,
+)
+from cyber_rodent.observations import (
+    OBSERVATION_NAMES,
+    OBSERVATION_UNITS,
+    ObservationBounds,
+    ObservationLimits,
+    check_observation,
+    nearest_frame,
     robot_observations,
 )
 from cyber_rodent.render import FieldRenderer, check_image_size
@@ -115,6 +122,8 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         n_robots: robots (agents), ≥ 1.
         n_packs: battery packs.
         action: ``"discrete"`` or ``"continuous"``.
+        observation: ``"normalised"`` (in [0, 1], bearings in [−1, 1]) or ``"raw"``
+            (physical units); :mod:`cyber_rodent.observations`.
         survival: the survival rules (default: the paper's).
         max_cycles: control steps after which every agent is truncated, ≥ 1.
         dock_reward: reward of a captured battery.
@@ -143,6 +152,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         n_packs: int = TASK.field.packs,
         *,
         action: str = "discrete",
+        observation: str = "normalised",
         survival: SurvivalConfig | None = None,
         max_cycles: int = TASK.episode_steps,
         dock_reward: float = 1.0,
@@ -156,6 +166,7 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         backend: Backend = DEFAULT_BACKEND,
     ) -> None:
         self.action_kind = check_choice("action", action, ACTION_KINDS)
+        self.observation_kind = check_observation(observation)
         if survival is not None and not isinstance(survival, SurvivalConfig):
             raise ValueError(f"survival must be a SurvivalConfig, got {type(survival).__name__}")
         self.max_cycles = check_integer("max_cycles", max_cycles, 1, 10_000_000)
@@ -188,14 +199,15 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self.possible_agents = [agent_name(i) for i in range(n)]
         self.agents: list[str] = []
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
-        bounds = observation_bounds(self.world.range_max[0], self.max_range, rules)
+        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, rules)
         self.observation_names = OBSERVATION_NAMES
         self.observation_units = OBSERVATION_UNITS
+        self.observation_bounds: ObservationBounds = limits.bounds()
+        self.observation_scale = limits.scale()
         self.action_names = action_names(self.action_kind, SWITCHES)
         # One space object per agent, returned as is (PettingZoo seeds them per agent).
         self.observation_spaces = {
-            agent: spaces.Box(bounds.low, bounds.high, dtype=np.float32)
-            for agent in self.possible_agents
+            agent: limits.space(self.observation_kind) for agent in self.possible_agents
         }
         self.action_spaces = {
             agent: action_space(self.action_kind, SWITCHES, self.max_wheel_speed)
@@ -233,10 +245,9 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self.world.set_led(False)
         self.agents = list(self.possible_agents)
         self.steps = 0
-        frame = self.vision.observe()
+        frame = nearest_frame(self.vision)
         self.rewards.reset(frame)
-        states = robot_observations(self.survival, frame, self.max_range)
-        self._raw = states
+        states = self._states(frame)
         observations = {agent: states[i].copy() for agent, i in self._index.items()}
         return observations, {agent: {} for agent in self.agents}
 
@@ -279,10 +290,9 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         self.rewards.begin()
         events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
         self.steps += 1
-        frame: VisionFrame = self.vision.observe()
+        frame = nearest_frame(self.vision)
         reward = total_reward(self.rewards.end(events, frame, TASK.reached(events)))
-        states = robot_observations(self.survival, frame, self.max_range)
-        self._raw = states
+        states = self._states(frame)
         truncate = self.steps >= self.max_cycles
         sw = self.survival
         observations: dict[str, np.ndarray] = {}
@@ -318,6 +328,14 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         if self._raw is None:
             raise RuntimeError("no observation yet: call reset()")
         return {agent: self._raw[self._index[agent]].copy() for agent in self.agents}
+
+    def _states(self, frame: VisionFrame) -> np.ndarray:
+        """Every robot's observation (normalised unless ``observation="raw"``); the physical
+        units are kept for :meth:`raw_observations`."""
+        self._raw = states = robot_observations(self.survival, frame, self.max_range)
+        if self.observation_kind == "normalised":
+            states = self.observation_scale.normalise(states)
+        return states
 
     def render(self) -> np.ndarray | None:
         """The top-down view of the field, (render_height, render_width, 3) uint8."""

@@ -45,30 +45,38 @@ as the learner's) and returns an action of this environment's action space; pass
 being trained (for example ``lambda obs: model.predict(obs)[0]``) to train as the behaviours
 were. Without one the partner stands still, LED on, signalling Mate.
 
-Observation: ``Box((21,), float32)`` in raw physical units, names in
-``env.unwrapped.observation_names`` (units in ``observation_units``), the bounds in the space:
+Observation: ``Box((21,), float32)``, normalised by default (``observation="normalised"``):
+every entry mapped linearly by its bounds into [0, 1], the bearings into [−1, 1] (0 straight
+ahead); ``observation="raw"`` gives the same entries in physical units. Names in
+``env.unwrapped.observation_names``, raw units in ``observation_units``, raw bounds in
+``observation_bounds``, the normalisation in ``observation_scale``; the one table of them is
+:mod:`cyber_rodent.observations`:
 
-=======================================  ============================  ========================
-name                                     range                         unit
-=======================================  ============================  ========================
-``range_front``                          [0, 1.0]                      m, IR range (saturates)
-``range_front_left30``, ``..._right30``  [0, 0.3]                      m
-``range_front_left60``, ``..._right60``  [0, 0.3]                      m
-``range_back``, ``range_left``,          [0, 0.3]                      m
+=======================================  =====================  ================================
+name                                     raw                    normalised
+=======================================  =====================  ================================
+``range_front``                          [0, 1.0] m, IR range   proximity ``1 − range / 1.0``
+``range_front_left30``, ``..._right30``  [0, 0.3] m             proximity ``1 − range / 0.3``
+``range_front_left60``, ``..._right60``  [0, 0.3] m             as above
+``range_back``, ``range_left``,          [0, 0.3] m             as above
 ``range_right``
-``led_bearing``                          [−π, π]                       rad, + = left; 0 unseen
-``led_distance``                         [0, max_range (3.25)]         m; max_range unseen
-``led_visible``                          {0, 1}                        flag
-``face_bearing`` / ``_distance`` /       as the LED's                  nearest red face
+``led_bearing``                          [−π, π] rad, + left;   ``bearing / π`` in [−1, 1]
+                                         0 unseen
+``led_distance``                         [0, max_range] m;      ``distance / max_range``
+                                         max_range (3.25)
+                                         unseen
+``led_visible``                          {0, 1} flag            as is
+``face_bearing`` / ``_distance`` /       as the LED's           as the LED's (nearest red face)
 ``_visible``
-``battery_bearing`` / ``_distance`` /    as the LED's                  nearest battery pack
+``battery_bearing`` / ``_distance`` /    as the LED's           as the LED's (nearest pack)
 ``_visible``
-``energy``                               [0, max_energy]               virtual energy (1e6 in
-                                                                       Forage, Mate, Search)
-``led_on``                               {0, 1}                        own LED
-``docked``                               {0, 1}                        docked and recharging
-``recharge_steps``                       [0, max_recharge_steps (40)]  control steps
-=======================================  ============================  ========================
+``energy``                               [0, max_energy]        ``energy / max_energy``: 0.5 at
+                                         (200; 1e6 in Forage,   birth in Survival; 1 (full) in
+                                         Mate, Search)          Forage, Mate and Search
+``led_on``                               {0, 1} own LED         as is
+``docked``                               {0, 1} recharging      as is
+``recharge_steps``                       [0, 40] control steps  ``recharge_steps / 40``
+=======================================  =====================  ================================
 
 The range sensors are those of ``constants.RANGE_SENSORS`` in that order; the nearest LED, face
 and pack are the vision's (``camera.max_range`` is the field's diagonal by default).
@@ -101,13 +109,15 @@ Rewards (a float per step, robot 0's; the sum of the spec's named terms,
   geometric vision and the same placement, it equals ``BehaviourEpisode``'s reward of robot 0
   step by step (``tests/test_gym_env.py``). Survival has no training reward and refuses it.
 
-Pixels: ``pixels=True`` makes the observation a ``Dict`` with ``"state"`` (the vector above) and
-``"pixels"``, robot 0's omni strip as the camera renders it (``Box(0, 255, (height,
-n_views · view_width, 3), uint8)``, 192 × 512 by default; :mod:`cyber_rodent.vision.rendering`);
-``masks=True`` adds ``"masks"``, its colour segmentation (same shape, channel c is 255 on the
-pixels of class c: LED, face, battery; :mod:`cyber_rodent.vision.segmentation`). The state part
-still comes from ``vision`` (geometric by default), so pixels never change the dynamics or the
-reward.
+Pixels: ``pixels=True`` makes the observation a ``Dict`` with ``"state"`` (the vector above,
+normalised or raw) and ``"pixels"``, robot 0's omni strip as the camera renders it (``Box(0,
+255, (height, n_views · view_width, 3), uint8)``, 192 × 512 by default;
+:mod:`cyber_rodent.vision.rendering`); ``masks=True`` adds ``"masks"``, its colour segmentation
+(same shape, channel c is 255 on the pixels of class c: LED, face, battery;
+:mod:`cyber_rodent.vision.segmentation`). Images stay ``uint8`` in [0, 255] in either kind:
+image learners (Stable-Baselines3's ``CnnPolicy``, ``MultiInputPolicy``) recognise an image by
+that type and scale it to [0, 1] themselves. The state part still comes from ``vision``
+(geometric by default), so pixels never change the dynamics or the reward.
 
 ``info`` holds ``steps`` (control steps so far) and, after a step, ``collided`` (robot 0's body
 touches a wall, a pack or a robot), the task's measure (the spec's ``measure``): ``is_success``
@@ -126,9 +136,8 @@ the same seed and actions give the same trajectory, bit for bit.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, NamedTuple, SupportsFloat
+from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -137,6 +146,18 @@ from gymnasium import spaces
 from cyber_rodent import constants as C
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
 from cyber_rodent.commands import COMMAND_SPEEDS, N_COMMANDS
+from cyber_rodent.observations import (
+    N_OBSERVATIONS,
+    OBSERVATION_KINDS,
+    OBSERVATION_NAMES,
+    OBSERVATION_UNITS,
+    ObservationBounds,
+    ObservationLimits,
+    check_observation,
+    nearest_frame,
+    observation_bounds,
+    robot_observations,
+)
 from cyber_rodent.render import FieldRenderer, check_image_size
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
 from cyber_rodent.tasks.rewards import (
@@ -149,9 +170,6 @@ from cyber_rodent.tasks.rewards import (
 from cyber_rodent.tasks.spec import SURVIVAL, TaskSpec, task_names, task_spec
 from cyber_rodent.validation import check_boolean, check_choice, check_number
 from cyber_rodent.vision import (
-    BATTERY,
-    FACE,
-    LED,
     PROVIDER_NAMES,
     CameraConfig,
     VisionFrame,
@@ -176,84 +194,8 @@ DEFAULT_MAX_WHEEL_SPEED = 1.0
 #: A switch entry of a continuous action, in [-1, 1], is on above this.
 SWITCH_ON = 0.0
 
-_TARGETS = (("led", LED), ("face", FACE), ("battery", BATTERY))
-#: Observation names in vector order (see the module docstring).
-OBSERVATION_NAMES: tuple[str, ...] = (
-    *(name for name, _, _ in C.RANGE_SENSORS),
-    *(f"{target}_{part}" for target, _ in _TARGETS for part in ("bearing", "distance", "visible")),
-    "energy",
-    "led_on",
-    "docked",
-    "recharge_steps",
-)
-OBSERVATION_UNITS: tuple[str, ...] = (
-    *("m",) * C.N_RANGE,
-    *("rad", "m", "flag") * len(_TARGETS),
-    "energy",
-    "flag",
-    "flag",
-    "control steps",
-)
-N_OBSERVATIONS = len(OBSERVATION_NAMES)
-
 Observation = np.ndarray | dict[str, np.ndarray]
 PartnerPolicy = Callable[[Observation], Any]
-
-
-class ObservationBounds(NamedTuple):
-    """Per-entry bounds of the flat observation (float32, :data:`OBSERVATION_NAMES` order)."""
-
-    low: np.ndarray
-    high: np.ndarray
-
-
-def observation_bounds(
-    range_max: np.ndarray, max_range: float, survival: SurvivalConfig
-) -> ObservationBounds:
-    """The bounds of one robot's observation.
-
-    Args:
-        range_max: (8,) each range sensor's range, m (``World.range_max[0]``).
-        max_range: the camera's range, m (an unseen target's distance).
-        survival: the rules (``max_energy``, ``max_recharge_steps``).
-    """
-    low = np.zeros(N_OBSERVATIONS)
-    high = np.ones(N_OBSERVATIONS)
-    high[: C.N_RANGE] = range_max
-    for k in range(len(_TARGETS)):
-        col = C.N_RANGE + 3 * k
-        low[col], high[col] = -math.pi, math.pi
-        high[col + 1] = max_range
-    high[OBSERVATION_NAMES.index("energy")] = survival.max_energy
-    high[OBSERVATION_NAMES.index("recharge_steps")] = survival.max_recharge_steps
-    return ObservationBounds(low.astype(np.float32), high.astype(np.float32))
-
-
-def robot_observations(
-    survival: SurvivalWorld, frame: VisionFrame, max_range: float
-) -> np.ndarray:
-    """(n_robots, :data:`N_OBSERVATIONS`) float32: every robot's observation, a fresh array.
-
-    An unseen target has bearing 0, distance ``max_range`` and visible 0, as in the dm-control
-    tasks (:mod:`cyber_rodent.tasks.base`).
-    """
-    world = survival.world
-    obs = np.empty((world.config.n_robots, N_OBSERVATIONS), dtype=np.float32)
-    obs[:, : C.N_RANGE] = world.range_readings()
-    for k, (_, cls) in enumerate(_TARGETS):
-        col = C.N_RANGE + 3 * k
-        visible = frame.visible[:, cls]
-        obs[:, col] = np.where(visible, frame.bearing[:, cls], 0.0)
-        obs[:, col + 1] = np.where(
-            visible, np.minimum(frame.distance[:, cls], max_range), max_range
-        )
-        obs[:, col + 2] = visible
-    col = C.N_RANGE + 3 * len(_TARGETS)
-    obs[:, col] = survival.energy
-    obs[:, col + 1] = world.led_on
-    obs[:, col + 2] = survival.docked
-    obs[:, col + 3] = survival.recharge_steps
-    return obs
 
 
 # --- actions -------------------------------------------------------------------------------------
@@ -340,6 +282,8 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         action: ``"discrete"`` (the command table) or ``"continuous"`` (wheel speeds, m/s).
         reward: ``"sparse"`` (the task's success) or ``"shaped"`` (the behaviours' training
             reward; not for Survival).
+        observation: ``"normalised"`` (the state in [0, 1], bearings in [−1, 1]) or ``"raw"``
+            (physical units); :mod:`cyber_rodent.observations`.
         pixels: add robot 0's omni strip to the observation (a ``Dict`` observation).
         masks: also add the strip's colour-segmentation masks (needs ``pixels``).
         vision: provider of the state's nearest LED, face and pack, ``"geometric"`` (as in
@@ -360,8 +304,13 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
     Attributes:
         task_spec: the task's spec (:class:`~cyber_rodent.tasks.spec.TaskSpec`), its ``gym``
             variant.
+        observation_kind: ``"normalised"`` or ``"raw"``.
         observation_names: the names of the state vector's entries.
-        observation_units: their units.
+        observation_units: the units of their raw values.
+        observation_bounds: the raw values' bounds (:class:`ObservationBounds`).
+        observation_scale: the normalisation (:class:`~cyber_rodent.observations.
+            ObservationScale`; ``observation_scale.raw(obs)`` turns a normalised state back
+            into physical units).
         action_names: the names of an action's entries.
         world, survival, vision: the simulation objects.
         steps: control steps of the current episode.
@@ -378,6 +327,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         *,
         action: str = "discrete",
         reward: str = "sparse",
+        observation: str = "normalised",
         pixels: bool = False,
         masks: bool = False,
         vision: str = "geometric",
@@ -397,6 +347,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.task = spec.name
         self.action_kind = check_choice("action", action, ACTION_KINDS)
         self.reward_kind = check_choice("reward", reward, REWARD_KINDS)
+        self.observation_kind = check_observation(observation)
         registered = [task_spec(name) for name in task_names()]
         if not spec.rewards(reward):
             offering = [other.title for other in registered if other.shaped]
@@ -470,10 +421,12 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.action_space = action_space(self.action_kind, switches, self.max_wheel_speed)
         self.action_names = action_names(self.action_kind, switches)
 
-        bounds = observation_bounds(self.world.range_max[0], self.max_range, rules)
+        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, rules)
         self.observation_names = OBSERVATION_NAMES
         self.observation_units = OBSERVATION_UNITS
-        state_space = spaces.Box(bounds.low, bounds.high, dtype=np.float32)
+        self.observation_bounds: ObservationBounds = limits.bounds()
+        self.observation_scale = limits.scale()
+        state_space = limits.space(self.observation_kind)
         if pixels:
             shape = (self.camera.height, self.camera.strip_width, 3)
             image = {"pixels": spaces.Box(0, 255, shape, dtype=np.uint8)}
@@ -521,7 +474,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         for _ in range(self.episode.max_start_draws):
             self.survival.reset(rng)
             self.world.set_led(self._led)
-            frame = self.vision.observe()
+            frame = nearest_frame(self.vision)
             if start is None or start.holds(frame):
                 break
         else:
@@ -549,7 +502,7 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         self.rewards.begin()
         events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
         self.steps += 1
-        self._frame = self.vision.observe()
+        self._frame = nearest_frame(self.vision)
         self.survival.collisions(out=self._collided)
         spec = self.task_spec
         success = spec.reached(events)
@@ -611,6 +564,8 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
     def _look(self) -> None:
         """Every robot's state vector, and the strips if the observation has pixels."""
         self._states = robot_observations(self.survival, self._frame, self.max_range)
+        if self.observation_kind == "normalised":
+            self._states = self.observation_scale.normalise(self._states)
         if self._pixels is not None and self._pixels is not self.vision:
             self._pixels.observe()
 
@@ -625,3 +580,27 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
             masks = self._pixels.segmenter.masks_from_classes(classes[robot])
             obs["masks"] = np.moveaxis(masks, 0, -1).copy()
         return obs
+
+
+__all__ = [
+    "ACTION_KINDS",
+    "DEFAULT_MAX_WHEEL_SPEED",
+    "N_OBSERVATIONS",
+    "OBSERVATION_KINDS",
+    "OBSERVATION_NAMES",
+    "OBSERVATION_UNITS",
+    "REWARD_KINDS",
+    "SURVIVAL_STEPS",
+    "SWITCH_ON",
+    "TASK_NAMES",
+    "CyberRodentEnv",
+    "Observation",
+    "ObservationBounds",
+    "PartnerPolicy",
+    "action_names",
+    "action_space",
+    "check_max_wheel_speed",
+    "decode_action",
+    "observation_bounds",
+    "robot_observations",
+]

@@ -50,7 +50,7 @@ def test_actions_of_both_kinds_are_the_steps_decisions() -> None:
 
 
 def test_raw_observations_are_the_physical_observations() -> None:
-    env = parallel_env()
+    env = parallel_env(observation="raw")
     with pytest.raises(RuntimeError, match=r"call reset\(\)"):
         env.raw_observations()
     observations, _ = env.reset(seed=1)
@@ -64,6 +64,14 @@ def test_raw_observations_are_the_physical_observations() -> None:
         observations, *_ = env.step(policy(observations))
     for agent in env.agents:
         np.testing.assert_array_equal(env.raw_observations()[agent], observations[agent])
+    # With the default normalised observations, raw_observations still gives physical units.
+    normalised = parallel_env()
+    observations, _ = normalised.reset(seed=1)
+    raw_env = parallel_env(observation="raw")
+    expected, _ = raw_env.reset(seed=1)
+    for agent in observations:
+        np.testing.assert_array_equal(normalised.raw_observations()[agent], expected[agent])
+        assert not np.array_equal(observations[agent], expected[agent])
 
 
 def test_baseline_reads_each_entry_by_name_and_unit(monkeypatch) -> None:

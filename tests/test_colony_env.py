@@ -48,7 +48,7 @@ def test_parallel_api_and_seed_tests_pass(action: str, capsys: pytest.CaptureFix
 
 
 def test_spaces_agents_and_observation_layout() -> None:
-    env = ColonyEnv(action="continuous")
+    env = ColonyEnv(action="continuous", observation="raw")
     assert env.possible_agents == AGENTS and env.agents == []
     obs, infos = env.reset(seed=0)
     assert env.agents == AGENTS and set(obs) == set(infos) == set(AGENTS)
@@ -63,6 +63,34 @@ def test_spaces_agents_and_observation_layout() -> None:
     discrete = ColonyEnv()
     assert discrete.action_space("robot_0") == spaces.MultiDiscrete([N_COMMANDS, 2, 2, 2])
     assert discrete.observation_names == OBSERVATION_NAMES
+
+
+def test_the_default_observation_is_normalised() -> None:
+    raw_env, env = ColonyEnv(observation="raw"), ColonyEnv()
+    assert env.observation_kind == "normalised"
+    space = env.observation_space("robot_1")
+    assert isinstance(space, spaces.Box) and space.shape == (len(OBSERVATION_NAMES),)
+    bearings = [index(f"{target}_bearing") for target in ("led", "face", "battery")]
+    assert (space.high == 1).all() and space.dtype == np.float32
+    assert (space.low[bearings] == -1).all() and np.delete(space.low, bearings).max() == 0
+    for i, agent in enumerate(env.possible_agents):
+        env.action_space(agent).seed(i)
+        raw_env.action_space(agent).seed(i)
+    obs, _ = env.reset(seed=2)
+    raw, _ = raw_env.reset(seed=2)
+    assert all(o[index("energy")] == 0.5 for o in obs.values())  # 100 of 200 at birth
+    for _ in range(150):  # past the deaths at step 100
+        for agent, o in obs.items():
+            assert o in space and np.array_equal(o, env.observation_scale.normalise(raw[agent]))
+            assert raw[agent] in raw_env.observation_space(agent)
+        if not env.agents:
+            break
+        actions = {a: env.action_space(a).sample() for a in env.agents}
+        raw_actions = {a: raw_env.action_space(a).sample() for a in raw_env.agents}
+        obs, *_ = env.step(actions)
+        raw, *_ = raw_env.step(raw_actions)
+    with pytest.raises(ValueError, match="observation must be one of normalised, raw"):
+        ColonyEnv(observation="metres")
 
 
 def test_observations_change_and_same_seed_gives_same_trajectory() -> None:

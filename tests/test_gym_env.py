@@ -93,7 +93,7 @@ def test_check_env_every_combination(env_id: str, action: str, pixels: bool) -> 
 
 # --- spaces -------------------------------------------------------------------------------------
 def test_observation_names_units_and_bounds_are_documented() -> None:
-    env = CyberRodentEnv("survival")
+    env = CyberRodentEnv("survival", observation="raw")
     space = env.observation_space
     assert isinstance(space, gym.spaces.Box) and space.dtype == np.float32
     assert space.shape == (len(OBSERVATION_NAMES),) == (21,) == (len(OBSERVATION_UNITS),)
@@ -108,7 +108,110 @@ def test_observation_names_units_and_bounds_are_documented() -> None:
         assert high[index(f"{target}_visible")] == 1.0
     assert high[index("energy")] == 200.0 and high[index("recharge_steps")] == 40.0
     assert (low[[index("energy"), index("docked"), index("range_front")]] == 0).all()
-    assert CyberRodentEnv("forage").observation_space.high[index("energy")] == 1e6
+    forage = CyberRodentEnv("forage", observation="raw")
+    assert forage.observation_space.high[index("energy")] == 1e6
+    assert np.array_equal(env.observation_bounds.low, low)
+    assert np.array_equal(env.observation_bounds.high, high)
+
+
+def test_the_default_observation_is_normalised_by_the_bounds() -> None:
+    env = CyberRodentEnv("survival")
+    assert env.observation_kind == "normalised"
+    space = env.observation_space
+    assert isinstance(space, gym.spaces.Box) and space.dtype == np.float32
+    bearings = [index(f"{target}_bearing") for target in ("led", "face", "battery")]
+    others = [i for i in range(21) if i not in bearings]
+    assert space.shape == (21,) and (space.high == 1).all()
+    assert (space.low[bearings] == -1).all() and (space.low[others] == 0).all()
+    scale = env.observation_scale
+    # The ranges read as proximities (0 = nothing in range, 1 = touching), the rest by bounds.
+    assert scale.zero[index("range_front")] == 1.0 and scale.one[0] == 0.0
+    assert scale.zero[index("range_back")] == 0.3
+    for target in ("led", "face", "battery"):  # bearings: 0 ahead, -1 and 1 behind
+        assert scale.zero[index(f"{target}_bearing")] == 0.0
+        assert scale.one[index(f"{target}_bearing")] == math.pi
+        assert scale.one[index(f"{target}_distance")] == CameraConfig().max_range
+    assert scale.one[index("energy")] == 200.0 and scale.one[index("recharge_steps")] == 40.0
+    raw = np.zeros(21, dtype=np.float32)
+    raw[index("range_front")] = 0.25  # 0.25 of 1.0 m: proximity 0.75
+    raw[index("range_back")] = 0.3  # nothing in range
+    raw[index("battery_bearing")] = math.pi / 2  # on the left: 0.5
+    raw[index("face_bearing")] = -3 * math.pi / 4  # behind on the right: -0.75
+    raw[index("battery_distance")] = CameraConfig().max_range / 4
+    raw[index("energy")] = 150.0
+    raw[index("recharge_steps")] = 10.0
+    normalised = scale.normalise(raw)
+    assert normalised.dtype == np.float32
+    expected = {"range_front": 0.75, "range_back": 0.0, "range_left": 1.0, "led_bearing": 0.0,
+                "battery_bearing": 0.5, "face_bearing": -0.75, "battery_distance": 0.25,
+                "energy": 0.75, "recharge_steps": 0.25, "docked": 0.0}  # fmt: skip
+    for name, value in expected.items():
+        assert normalised[index(name)] == pytest.approx(value, abs=1e-7), name
+    assert np.allclose(scale.raw(normalised), raw, rtol=1e-6, atol=1e-7)
+    # Beyond the bounds is clipped; a reversed entry reads +0.0, not -0.0.
+    beyond = scale.normalise(np.full(21, 1e9))
+    assert ((beyond == 0) | (beyond == 1)).all() and not np.signbit(beyond).any()
+    assert (beyond[:8] == 0).all() and (beyond[8:] == 1).all()  # ranges: nothing in range
+    below = scale.normalise(np.full(21, -1e9))
+    assert (below[:8] == 1).all() and np.array_equal(below[8:], space.low[8:])  # bearings -1
+    assert np.array_equal(scale.low, space.low) and np.array_equal(scale.high, space.high)
+    # The endless energy of Forage, Mate and Search reads full.
+    forage = CyberRodentEnv("forage")
+    obs, _ = forage.reset(seed=0)
+    assert obs[index("energy")] == 1.0
+    obs, *_ = forage.step(command_index("stop"))
+    assert 1.0 - 1e-5 < obs[index("energy")] <= 1.0
+
+
+def test_raw_observations_keep_their_values() -> None:
+    """The raw layout and values, recorded before the observation was normalised by default
+    (reset with seed 0, then 5 steps of arc_left)."""
+    r3 = 0.30000001192092896
+    far = 3.2526912689208984
+    recorded = {
+        "forage": (
+            [1.0, *[r3] * 7, 0.0, far, 0.0, 0.0, far, 0.0, -2.4478631019592285,
+             0.6227758526802063, 1.0, 1e6, 0.0, 0.0, 0.0],
+            [0.09028934687376022, 0.1307847797870636, 0.08267983049154282, r3,
+             0.22677887976169586, r3, r3, r3, 0.0, far, 0.0, 0.0, far, 0.0, -2.85066294670105,
+             0.7883510589599609, 1.0, 999995.0, 0.0, 0.0, 0.0],
+        ),
+        "mate": (
+            [1.0, *[r3] * 7, 1.5750772953033447, 1.2821811437606812, 1.0, 0.0, far, 0.0, 0.0,
+             far, 0.0, 1e6, 1.0, 0.0, 0.0],
+            [1.0, *[r3] * 7, 0.32672497630119324, 1.1253541707992554, 1.0, 0.0, far, 0.0, 0.0,
+             far, 0.0, 999995.0, 1.0, 0.0, 0.0],
+        ),
+        "search": (
+            [0.3254320025444031, *[r3] * 7, 0.0, far, 0.0, -2.9959053993225098,
+             1.1266417503356934, 1.0, 2.4175689220428467, 0.6227758526802063, 1.0, 1e6, 0.0,
+             0.0, 0.0],
+            [0.48982423543930054, r3, r3, r3, 0.21583543717861176, r3, r3,
+             0.18345630168914795, 0.0, far, 0.0, 0.0, far, 0.0, 0.6013655662536621,
+             0.5633728504180908, 1.0, 999995.0, 0.0, 0.0, 0.0],
+        ),
+        "survival": (
+            [1.0, *[r3] * 7, 0.0, far, 0.0, 0.0, far, 0.0, -2.4478631019592285,
+             0.6227758526802063, 1.0, 100.0, 0.0, 0.0, 0.0],
+            [0.09028934687376022, 0.1307847797870636, 0.08267983049154282, r3,
+             0.22677887976169586, r3, r3, r3, 0.0, far, 0.0, 0.0, far, 0.0, -2.85066294670105,
+             0.7883510589599609, 1.0, 95.0, 0.0, 0.0, 0.0],
+        ),
+    }  # fmt: skip
+    arc = command_index("arc_left")
+    for task, (first, fifth) in recorded.items():
+        raw = CyberRodentEnv(task, observation="raw")
+        normalised = CyberRodentEnv(task)
+        obs, _ = raw.reset(seed=0)
+        scaled, _ = normalised.reset(seed=0)
+        assert np.array_equal(obs, np.array(first, dtype=np.float32)), task
+        assert np.array_equal(scaled, raw.observation_scale.normalise(obs)), task
+        for _ in range(5):
+            action = [arc, 1] if task == "survival" else arc
+            obs, *_ = raw.step(action)
+            scaled, *_ = normalised.step(action)
+        assert np.array_equal(obs, np.array(fifth, dtype=np.float32)), task
+        assert np.array_equal(scaled, raw.observation_scale.normalise(obs)), task
 
 
 def test_action_spaces() -> None:
@@ -134,6 +237,10 @@ def test_action_spaces() -> None:
 def test_bad_options_and_actions_raise() -> None:
     with pytest.raises(ValueError, match="task must be one of"):
         CyberRodentEnv("dance")
+    with pytest.raises(ValueError, match="observation must be one of normalised, raw, got 'bogus'"):
+        CyberRodentEnv("forage", observation="bogus")
+    with pytest.raises(ValueError, match="observation must be one of"):
+        gym.make("CyberRodent/Search-v0", observation=None)
     with pytest.raises(ValueError, match="Survival has none"):
         CyberRodentEnv("survival", reward="shaped")
     with pytest.raises(ValueError, match="masks=True needs pixels=True"):
@@ -159,9 +266,10 @@ def test_bad_options_and_actions_raise() -> None:
 
 
 # --- episodes -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("observation", ["normalised", "raw"])
 @pytest.mark.parametrize("env_id", IDS)
-def test_observations_stay_in_bounds_and_change(env_id: str) -> None:
-    env = gym.make(env_id, action="continuous")
+def test_observations_stay_in_bounds_and_change(env_id: str, observation: str) -> None:
+    env = gym.make(env_id, action="continuous", observation=observation)
     env.action_space.seed(1)
     obs, _ = env.reset(seed=1)
     seen = [obs]
@@ -173,6 +281,26 @@ def test_observations_stay_in_bounds_and_change(env_id: str) -> None:
             break
     trace = np.stack(seen)
     assert (trace.std(axis=0) > 0).sum() >= 3  # ranges, bearings, energy... move
+    env.close()
+
+
+@pytest.mark.parametrize("observation", ["normalised", "raw"])
+@pytest.mark.parametrize("action", ["discrete", "continuous"])
+@pytest.mark.parametrize("env_id", IDS)
+def test_every_observation_of_many_random_steps_lies_in_the_space(
+    env_id: str, action: str, observation: str
+) -> None:
+    env = gym.make(env_id, action=action, observation=observation)
+    env.action_space.seed(2)
+    obs, _ = env.reset(seed=2)
+    space = env.observation_space
+    assert obs in space
+    for _ in range(300):  # random episodes: starts, dockings, deaths, truncations
+        obs, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        assert obs in space and np.isfinite(obs).all()
+        if terminated or truncated:
+            obs, _ = env.reset()
+            assert obs in space
     env.close()
 
 
@@ -276,7 +404,7 @@ def test_mate_sparse_reward_at_the_ir_exchange_with_a_partner_policy() -> None:
 
 
 def test_search_sparse_rewards_sum_to_the_cells_covered() -> None:
-    env = CyberRodentEnv("search")
+    env = CyberRodentEnv("search", observation="raw")  # ranges in metres
     obs, _ = env.reset(seed=0)
     positions = [env.world.poses()[0, :2].copy()]
     total = 0.0
@@ -294,7 +422,9 @@ def test_search_sparse_rewards_sum_to_the_cells_covered() -> None:
 
 
 def test_survival_capture_recharge_and_death() -> None:
-    env = CyberRodentEnv("survival", survival=SurvivalConfig(initial_energy=30.0))
+    env = CyberRodentEnv(
+        "survival", survival=SurvivalConfig(initial_energy=30.0), observation="raw"
+    )  # energy in its own units
     env.reset(seed=0)
     env.world.set_robot_pose(0, -0.5, 0.0, 0.0)
     for j, xy in enumerate([(0.0, 0.0), (0.9, -0.2), (-0.9, -0.9), (0.2, 0.9), (-0.2, -0.5)]):
