@@ -3,6 +3,7 @@ command; and the survival rule it adds, on a hand-computed pair of robots."""
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from pathlib import Path
@@ -32,6 +33,27 @@ def test_the_page_has_its_examples() -> None:
 @pytest.mark.parametrize("index", range(len(_blocks("python"))))
 def test_every_python_block_runs(index: int) -> None:
     exec(compile(_blocks("python")[index], f"{PAGE.name}[{index}]", "exec"), {})
+
+
+def test_the_colony_command_runs(tmp_path: Path) -> None:
+    """Example 4's command, made short: the same settings with 2 agents per robot and short
+    lives, so one generation takes seconds."""
+    from cyber_rodent.cli import main
+
+    (command,) = _blocks("bash")
+    args = command.split()[1:]
+    assert args[0] == "evolve" and "evolution.n_robots=16" in args
+    assert "world.field_size=4.6" in args and "world.n_packs=20" in args
+    out = tmp_path / "colony16"
+    args[args.index("--out") + 1] = str(out)
+    args[args.index("evolution.population_size=400")] = "evolution.population_size=32"
+    short = ["--set", "evolution.lifetime_steps=40", "--set", "evolution.time_sharing_steps=20"]
+    assert main([*args, *short]) == 0
+    record = json.loads((out / "run.json").read_text())
+    assert record["config"]["evolution"]["n_robots"] == 16
+    assert record["config"]["world"]["field_size"] == 4.6
+    assert record["config"]["world"]["n_packs"] == 20
+    assert (out / "statistics.csv").read_text().count("\n") >= 2
 
 
 # --- the survival rule of example 3, by hand ---------------------------------------------------
