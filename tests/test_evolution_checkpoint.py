@@ -651,3 +651,16 @@ def test_killing_the_writer_mid_write_leaves_the_last_good_checkpoint(tmp_path: 
     stale = remove_stale_temporaries(tmp_path)
     assert len(stale) == 1
     assert list(tmp_path.iterdir()) == [path]
+
+
+def test_default_fingerprint_is_the_earlier_versions() -> None:
+    """Fields added since (the controller, the field's size, the mating threshold, ...) are left
+    out of the fingerprint at their defaults, so checkpoints of earlier versions still resume:
+    the paper's run of seed 0 has the fingerprint it had before them."""
+    from behaviours import BehaviourPolicies
+    from evolution.runner import RunConfig, policy_identity, run_fingerprint
+
+    policies = policy_identity(BehaviourPolicies.load_default())
+    assert run_fingerprint(RunConfig(), 0, policies, None) == (
+        "05171b5b2de9bc1c2a48c04bddf4cea827e72dec848368c0199181d1a33def13"
+    )

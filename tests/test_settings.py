@@ -269,3 +269,20 @@ def test_the_field_size_is_a_key_and_the_camera_range_follows_it() -> None:
     assert "field_size = 4.6" in to_toml(wide)
     with pytest.raises(ValueError, match=r"world.field_size must be a number in \[0.5, 50\]"):
         apply(RunConfig(), {"world.field_size": 0.2})
+
+
+def test_a_colony_and_its_field_grow_in_one_set_of_settings() -> None:
+    """``evolution.n_robots`` and the world's field change together: 100 robots do not fit the
+    paper's 2.3 m field, but do fit the 11.5 m field set beside them."""
+    from evolution.runner import RunConfig
+    from evolution.runner.settings import apply
+
+    config = apply(
+        RunConfig(),
+        {"evolution.n_robots": 100, "evolution.population_size": 100,
+         "world.field_size": 11.5, "world.n_packs": 125},
+    )  # fmt: skip
+    assert (config.evolution.n_robots, config.world.n_robots) == (100, 100)
+    assert (config.world.field_size, config.world.n_packs) == (11.5, 125)
+    with pytest.raises(ValueError, match="n_robots"):
+        apply(RunConfig(), {"evolution.n_robots": 100, "evolution.population_size": 100})

@@ -117,9 +117,11 @@ LATER_FIELDS: tuple[tuple[Any, ...], ...] = (
     ("evolution", "reproduction", dataclasses.asdict(ReproductionConfig())),
     ("survival", "capture_rule", "docking"),
     ("survival", "mate_reflex", False),
+    ("survival", "mate_min_energy", 0.0),
     ("world", "pack_gap", 0.3),
     ("world", "pack_wall_clearance", 0.2),
     ("world", "pack_reactivation_steps", 0),
+    ("world", "field_size", 2.3),
 )
 
 

@@ -443,7 +443,11 @@ def apply(base: RunConfig, values: Mapping[str, Any]) -> RunConfig:
         genetics = _replace(result.evolution.genetics, genetic_changes, "genetic")
         changes = {**evolution_changes, "genetics": genetics}
         evolution = _replace(result.evolution, changes, "evolution")
-        result = result.replace(evolution=evolution)
+        # The world in the same step: its robot count follows the evolution's, so a field
+        # enlarged by the same settings must already hold the new robots when it is checked.
+        world_changes = {**groups.pop(("world",), {}), "n_robots": evolution.n_robots}
+        world = _replace(result.world, world_changes, "world")
+        result = result.replace(evolution=evolution, world=world)
     while groups:  # nested parts before their parents
         path = max(groups, key=len)
         changes = groups.pop(path)
