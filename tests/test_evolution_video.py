@@ -18,11 +18,13 @@ from cyber_rodent.vision import CameraConfig
 from evolution.lab.api import make_config
 from evolution.lab.video import (
     MAX_HEIGHT,
+    MAX_STRIPS,
     Camera,
     RunVideo,
     VideoConfig,
     check_camera_robot,
     frame_layout,
+    legend_items,
     parse_camera,
     parse_integer_option,
     parse_size,
@@ -148,6 +150,18 @@ def test_panels_tile_the_frame_exactly(n_robots, camera, size) -> None:
     assert layout.field.w >= layout.field.h  # the top-down field is never cropped
     if camera == "top":
         assert layout.cell_robots == tuple(range(n_robots))
+
+
+def test_a_large_colony_shows_the_first_strips_and_says_which() -> None:
+    # No frame holds 100 robots' strips: the top layout shows the first MAX_STRIPS.
+    for size in ((1280, 720), (1920, 1080)):
+        layout = frame_layout(*size, Camera("top"), 100, CameraConfig())
+        assert 1 <= len(layout.cells) <= MAX_STRIPS
+        assert layout.cell_robots == tuple(range(len(layout.cells)))
+        shown = layout.cell_robots
+        note = f"strips: CR0-CR{shown[-1]} of 100"
+        assert note in [item.text for item in legend_items(Camera("top"), shown, 100)]
+    assert "of 4" not in str(legend_items(Camera("top"), (0, 1, 2, 3), 4))  # all shown
 
 
 def test_too_many_robots_for_the_frame_says_the_size_needed() -> None:

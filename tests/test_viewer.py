@@ -32,7 +32,16 @@ import numpy as np
 import pytest
 
 from evolution.lab import viewer
-from evolution.lab.viewer import OVERVIEW, Controls, Mirror, Session, TaskSource
+from evolution.lab.viewer import (
+    MAX_PANEL_ROBOTS,
+    OVERVIEW,
+    Controls,
+    Mirror,
+    RobotStatus,
+    Session,
+    TaskSource,
+    panel_texts,
+)
 
 #: The virtual screen; the viewer's window takes a part of it.
 SCREEN = (1280, 800)
@@ -587,3 +596,16 @@ def test_survival_choice_rule() -> None:
     docked = np.array([False, False, False, False, False, True])
     choice = viewer.survival_choice(inputs, energy, docked, max_energy=200.0)
     assert choice.tolist() == [MATE, FORAGE, FORAGE, SEARCH, MATE, viewer.RECHARGING]
+
+
+def test_robot_panel_lists_a_large_colony_in_a_bounded_number_of_lines() -> None:
+    def robots(n: int) -> list[RobotStatus]:
+        return [RobotStatus(f"CR{i}", "Search", (255, 255, 255), 90.0) for i in range(n)]
+
+    _, (names, _) = panel_texts([], robots(100), 0.0, Controls(1.0))
+    assert len(names.splitlines()) == MAX_PANEL_ROBOTS + 1
+    _, (names, values) = panel_texts([], robots(4), 0.0, Controls(1.0))
+    assert names.splitlines() == ["CR0", "CR1", "CR2", "CR3"]  # the paper's colony: unchanged
+    assert "more" not in values
+    _, (_, values) = panel_texts([], robots(100), 0.0, Controls(1.0))
+    assert values.splitlines()[-1] == f"and {100 - MAX_PANEL_ROBOTS} more"

@@ -27,6 +27,7 @@ written to a temporary file and renamed when complete.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import re
@@ -58,13 +59,14 @@ from cyber_rodent.render import (
     draw_heading,
     draw_text,
     fill_background,
+    label_scale,
     text_scale,
     text_thickness,
 )
 from cyber_rodent.validation import check_integer, integer, validate_fields
 from cyber_rodent.vision import CameraConfig
 from cyber_rodent.vision.projection import OmniProjection
-from cyber_rodent.vision.rendering import OmniRenderer
+from cyber_rodent.vision.rendering import MAX_BUFFER_SIDE, OmniRenderer
 from evolution.lab.api import CHECKPOINT_DIR, RUN_FILE
 from evolution.runner import list_checkpoints
 
@@ -93,6 +95,9 @@ MIN_HEIGHT, MAX_HEIGHT, MAX_WIDTH, MIN_COLUMN = 480, 2160, 3840, 256
 MIN_STRIP, MIN_FIELD = 8, 120
 #: The smallest font scale used (status lines shrink to it when many robots need the room).
 SMALLEST_TEXT = 0.35
+#: Most omni strips the top layout shows when not every robot's fits (the first ones).
+MAX_STRIPS = 4
+
 #: Most a strip is stretched vertically to fill spare room (beyond, the legend's rows spread).
 MAX_STRETCH = 1.25
 CAMERAS = ("top", "chase", "omni")
@@ -283,8 +288,11 @@ class LegendItem(NamedTuple):
     text: str
 
 
-def legend_items(camera: Camera) -> list[LegendItem]:
-    """The legend of a frame shown with ``camera``."""
+def legend_items(
+    camera: Camera, strips: Sequence[int] | None = None, n_robots: int = 0
+) -> list[LegendItem]:
+    """The legend of a frame shown with ``camera``; ``strips``: the robots whose omni strips
+    the side panel shows, when not all ``n_robots`` fit (a line says which)."""
     items = [LegendItem("swatch", rgb, text) for text, rgb in (
         ("Mate: seek a partner", BEHAVIOUR_STYLE[0][1]),
         ("Forage: seek a pack", BEHAVIOUR_STYLE[1][1]),
@@ -303,6 +311,9 @@ def legend_items(camera: Camera) -> list[LegendItem]:
     if camera.robot is not None:
         items.append(LegendItem("ring", FOLLOWED_RGB, f"robot followed (CR{camera.robot})"))
     items.append(LegendItem("strip", (255, 255, 255), "omni strip: 360 deg, ahead mid"))
+    if strips is not None and len(strips) < n_robots:
+        shown = f"CR{strips[0]}" if len(strips) == 1 else f"CR{strips[0]}-CR{strips[-1]}"
+        items.append(LegendItem("strip", (255, 255, 255), f"strips: {shown} of {n_robots}"))
     return items
 
 
@@ -371,6 +382,10 @@ def frame_layout(
                 f"--size {width}x{height} is too small for {n_robots} robots with --camera "
                 f"{camera}: H must be at least {taller} (e.g. --size {wider}x{taller})"
             )
+    # No size shows every robot's strip (a large colony): the first MAX_STRIPS that fit.
+    layout = _tile(width, height, camera, n_robots, camera_config, capped=True)
+    if layout is not None:
+        return layout
     raise ValueError(
         f"--camera {camera} cannot show {n_robots} robots in any --size ({SIZE_RULE}); use "
         "--camera chase:N or omni:N"
@@ -378,13 +393,18 @@ def frame_layout(
 
 
 def _tile(
-    width: int, height: int, camera: Camera, n: int, camera_config: CameraConfig
+    width: int,
+    height: int,
+    camera: Camera,
+    n: int,
+    camera_config: CameraConfig,
+    capped: bool = False,
 ) -> FrameLayout | None:
     """The layout, with the status lines' font shrunk to the smallest if that makes the
     robots' strips fit; None if nothing fits."""
     scale = text_scale(height)
     for status_scale in (scale, SMALLEST_TEXT):
-        layout = _tile_at(width, height, camera, n, camera_config, scale, status_scale)
+        layout = _tile_at(width, height, camera, n, camera_config, scale, status_scale, capped)
         if layout is not None:
             return layout
     return None
@@ -398,6 +418,7 @@ def _tile_at(
     camera_config: CameraConfig,
     scale: float,
     status_scale: float,
+    capped: bool = False,
 ) -> FrameLayout | None:
     status_h = status_height(status_scale)
     column = min(width - height, max(MIN_COLUMN, round(0.9 * height)))
@@ -408,13 +429,23 @@ def _tile_at(
     robots: list[int] = []
     chase = None
     if camera.kind == "top":
+        shown = n
         cell = _cell_height(n, column, height - need, status_h, ratio)
+        if cell is None and capped:  # too many robots: the first MAX_STRIPS (or fewer) that fit
+            robots = list(range(min(n, MAX_STRIPS)))
+            _, need = _legend_geometry(column, legend_items(camera, robots, n), scale)
+            for shown in range(min(n, MAX_STRIPS), 0, -1):
+                cell = _cell_height(shown, column, height - need, status_h, ratio)
+                if cell is not None:
+                    break
+            else:
+                return None
         if cell is None:
             return None
         field = Rect(0, 0, main, height)
-        robots = list(range(n))
+        robots = list(range(shown))
         cells = [Rect(main, k * cell, column, cell) for k in robots]
-        legend = Rect(main, n * cell, column, height - n * cell)
+        legend = Rect(main, shown * cell, column, height - shown * cell)
     elif camera.kind == "chase":
         assert camera.robot is not None
         cell = status_h + round(column * ratio)
@@ -547,7 +578,7 @@ class RunVideo:
         self._recentre = self.camera_config.strip_width // 2 - int(
             np.argmin(np.abs(proj.column_bearing))
         )
-        self.items = legend_items(self.camera)
+        self.items = legend_items(self.camera, self.layout.cell_robots, n)
         self.field = FieldRenderer(
             world, self.layout.field.w, self.layout.field.h, background=BACKGROUND_RGB
         )
@@ -557,7 +588,13 @@ class RunVideo:
             self.chase = FieldRenderer(
                 world, self.layout.chase.w, self.layout.chase.h, background=BACKGROUND_RGB
             )
-        self.omni = OmniRenderer(world, self.camera_config)
+        # Every robot's strip is rendered into one buffer; a large colony's get fewer rows
+        # (only the shown strips are drawn, scaled to their cells, so the frame looks the same).
+        rows = max(1, MAX_BUFFER_SIDE // n)
+        strips = self.camera_config
+        if strips.height > rows:
+            strips = dataclasses.replace(strips, height=rows)
+        self.omni = OmniRenderer(world, strips)
         legend = self.layout.legend
         self._legend = np.empty((legend.h, legend.w, 3), dtype=np.uint8)
         draw_legend(self._legend, self.items, self.layout.scale)
@@ -619,7 +656,8 @@ class RunVideo:
             label, rgb = BEHAVIOUR_STYLE[int(behaviour[i])]
             energy = float(runner.survival.energy[i]) / max_energy
             tags.append(RobotTag(f"CR{i} {label}", rgb, energy))
-        scale = min(self.layout.scale, text_scale(image.shape[0]))
+        # Labels no larger than the robots (as in the snapshot), so a large colony's stay apart.
+        scale = min(self.layout.scale, label_scale(image.shape[0], ppm))
         self.label_boxes = annotate_world(image, self.field, tags, scale)
         return image
 

@@ -573,6 +573,10 @@ def _columns(rows: Sequence[tuple[str, str]]) -> tuple[str, str]:
     return "\n".join(k for k, _ in rows), "\n".join(v for _, v in rows)
 
 
+#: Most robots the robot panel lists, one line each (a large colony's rest in one last line).
+MAX_PANEL_ROBOTS = 10
+
+
 def panel_texts(
     source_rows: Sequence[tuple[str, str]],
     robots: Sequence[RobotStatus],
@@ -580,10 +584,14 @@ def panel_texts(
     controls: Controls,
 ) -> tuple[tuple[str, str], tuple[str, str]]:
     """The two panels, each two columns: top left the source, time and speed; top right one
-    line per robot (behaviour, energy, and its agent in a run)."""
+    line per robot (behaviour, energy, and its agent in a run), the first
+    :data:`MAX_PANEL_ROBOTS` of a large colony and a line counting the rest."""
     speed = f"{controls.speed:g}x" + ("   PAUSED (Space resumes)" if controls.paused else "")
     about = [*source_rows, ("time", f"{sim_time:.1f} s"), ("speed", speed)]
-    lines = [(r.name, f"{r.behaviour:<9s}{r.energy:4.0f}  {r.detail}".rstrip()) for r in robots]
+    listed = robots[:MAX_PANEL_ROBOTS]
+    lines = [(r.name, f"{r.behaviour:<9s}{r.energy:4.0f}  {r.detail}".rstrip()) for r in listed]
+    if len(robots) > len(listed):
+        lines.append(("...", f"and {len(robots) - len(listed)} more"))
     return _columns(about), _columns(lines)
 
 
