@@ -536,6 +536,16 @@ def test_labels_of_robots_close_on_the_screen_are_lifted_apart() -> None:
         assert apart, (a, b)
 
 
+def test_labels_of_a_large_colony_stay_on_their_robots() -> None:
+    """Up to MAX_LIFTED_LABELS robots labels are lifted apart; beyond, they stay (lifting 100
+    labels of robots a few pixels apart would stack towers taller than any window)."""
+    n = viewer.MAX_LIFTED_LABELS
+    rows = np.stack([np.zeros(n + 1), np.arange(n + 1) * 2.0], axis=1)  # a tight column
+    texts = [f"CR{i} Search 100" for i in range(n + 1)]
+    assert viewer.label_lifts(rows[:n], texts[:n])[1:].min() > 0
+    np.testing.assert_array_equal(viewer.label_lifts(rows, texts), np.zeros(n + 1))
+
+
 def test_mirror_glides_between_steps_and_leaves_the_world_alone() -> None:
     source = CountingTask()
     mirror = Mirror(source.world)

@@ -444,6 +444,10 @@ DEFAULT_VIEWPORT_HEIGHT = 600
 LABEL_CHAR_PX = 8.5
 LABEL_TOP_PX = 14.0
 LABEL_SPACING_PX = 3.0
+#: Labels are lifted apart for colonies up to this size. In a larger one, seen whole, robots
+#: stand a few pixels apart and lifting would stack their labels into towers taller than the
+#: window (and cost time growing with the cube of the count): they stay on their robots.
+MAX_LIFTED_LABELS = 16
 
 
 class ScreenFrame(NamedTuple):
@@ -479,9 +483,12 @@ def label_lifts(anchors: np.ndarray, texts: Sequence[str]) -> np.ndarray:
 
     Returns:
         (n,) lifts, >= 0. Labels lowest on the screen stay; each higher one that would touch a
-        label already placed goes up just clear of it, straight above its robot.
+        label already placed goes up just clear of it, straight above its robot. All 0 for
+        more than :data:`MAX_LIFTED_LABELS` robots.
     """
     anchors = np.asarray(anchors, dtype=np.float64).reshape(-1, 2)
+    if len(anchors) > MAX_LIFTED_LABELS:
+        return np.zeros(len(anchors))
     below = BAR_GAP_PX + BAR_THICKNESS_PX + 1.0
     boxes: list[tuple[float, float, float, float]] = []  # (x0, y0, x1, y1), y up
     lifts = np.zeros(len(anchors))
