@@ -324,6 +324,7 @@ def test_transfer_carries_the_controller(mlp_run, tmp_path) -> None:
     assert record["config"]["evolution"]["controller"] == "mlp"
 
 
+@pytest.mark.slow  # compiles the mlp's learning step (about 25 s)
 def test_learning_mode_with_the_mlp_controller() -> None:
     learning = dataclasses.replace(SMALL.learning, enabled=True)
     evo = dataclasses.replace(SMALL, controller="mlp", hidden_units=3, learning=learning)
@@ -386,6 +387,7 @@ def test_a_controller_defined_in_a_test_runs(bias_only_registered, backend) -> N
         assert runner.steps == 15
 
 
+@pytest.mark.slow  # compiles the factory's fused step (about 25 s)
 def test_the_built_kernels_of_the_paper_give_the_paper_run() -> None:
     """The paper's rule through the in-process kernel factory, not its prebuilt kernels: the
     same trajectory, bit for bit (the factory is the path of every other controller)."""
@@ -441,7 +443,9 @@ def energy_squared_registered():
     assert input_table() == INPUTS
 
 
-@pytest.mark.parametrize("controller", ["paper", "mlp"])
+@pytest.mark.parametrize(
+    "controller", ["paper", pytest.param("mlp", marks=pytest.mark.slow)]  # each compiles ~25 s
+)
 def test_an_input_added_here_reaches_the_fused_step(energy_squared_registered, controller) -> None:
     evo = dataclasses.replace(SMALL, controller=controller, hidden_units=2)
     layout = resolve(evo)
