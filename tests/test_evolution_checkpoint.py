@@ -655,12 +655,18 @@ def test_killing_the_writer_mid_write_leaves_the_last_good_checkpoint(tmp_path: 
 
 def test_default_fingerprint_is_the_earlier_versions() -> None:
     """Fields added since (the controller, the field's size, the mating threshold, ...) are left
-    out of the fingerprint at their defaults, so checkpoints of earlier versions still resume:
-    the paper's run of seed 0 has the fingerprint it had before them."""
+    out of the fingerprint at the value that reproduces the earlier behaviour, so checkpoints of
+    earlier versions still resume: the paper's run of seed 0 with the vision of before traced
+    pixels (``camera.trace_below`` off) has the fingerprint it had before them. Today's default
+    traces them, which changes what robots see, so its runs must not resume those checkpoints."""
+    import dataclasses
+
     from behaviours import BehaviourPolicies
+    from cyber_rodent.vision import CameraConfig
     from evolution.runner import RunConfig, policy_identity, run_fingerprint
 
     policies = policy_identity(BehaviourPolicies.load_default())
-    assert run_fingerprint(RunConfig(), 0, policies, None) == (
-        "05171b5b2de9bc1c2a48c04bddf4cea827e72dec848368c0199181d1a33def13"
-    )
+    before = dataclasses.replace(RunConfig(), camera=CameraConfig(trace_below=(0, 0, 0)))
+    earlier = "05171b5b2de9bc1c2a48c04bddf4cea827e72dec848368c0199181d1a33def13"
+    assert run_fingerprint(before, 0, policies, None) == earlier
+    assert run_fingerprint(RunConfig(), 0, policies, None) != earlier

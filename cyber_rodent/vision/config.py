@@ -120,6 +120,12 @@ class CameraConfig:
             blue blobs of one or two pixels are mostly fragments of a face or pack glimpsed
             through a gap (under a chassis, beside a wheel), whose edges give no distance,
             while a whole pack anywhere in the field covers at least ~5 pixels by default.
+        trace_below: pixels, per class (LED, FACE, BATTERY): the geometric provider measures
+            a target whose whole footprint covers fewer pixels than this pixel by pixel (a ray
+            through each covered pixel centre) once one of its occlusion samples is seen, so a
+            small target that a nearer body partly hides is seen exactly when enough of its
+            pixels show; larger targets keep the samples' estimate (footprint × visible share
+            of samples). 0 turns it off for the class (the model before it). docs/design.md §6.
         led, face, battery: HSV thresholds of the three colour classes.
         noise: optional measurement noise (off by default).
         near_clip: m, OpenGL near plane of the views (must be inside the robot's own body).
@@ -136,6 +142,7 @@ class CameraConfig:
         DEFAULT_MAX_DISTANCE, 0.0, 100.0, low_open=True, unit="m", source="docs/design.md §9.21"
     )
     min_blob_area: tuple[int, int, int] = (1, 3, 3)
+    trace_below: tuple[int, int, int] = (24, 60, 60)
     led: ColourThreshold = GREEN_LED
     face: ColourThreshold = RED_FACE
     battery: ColourThreshold = BLUE_BATTERY
@@ -155,6 +162,14 @@ class CameraConfig:
             )
         for name, a in zip(CLASS_NAMES, area, strict=True):
             check_integer(f"min_blob_area ({name})", a, 1, 10_000)
+        trace = self.trace_below
+        if not isinstance(trace, tuple) or len(trace) != N_CLASSES:
+            raise ValueError(
+                "trace_below must be a tuple of 3 integers in [0, 10000] pixels (LED, FACE, "
+                f"BATTERY), got {trace!r}"
+            )
+        for name, a in zip(CLASS_NAMES, trace, strict=True):
+            check_integer(f"trace_below ({name})", a, 0, 10_000)
         for name in ("led", "face", "battery"):
             if not isinstance(getattr(self, name), ColourThreshold):
                 raise ValueError(f"{name} must be a ColourThreshold")

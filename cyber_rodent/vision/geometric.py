@@ -228,6 +228,7 @@ class GeometricVision:
             depth_back=np.array([s.depth_back for s in shape_of], dtype=float),
             edge_slope=np.array([s.edge_slope for s in shape_of], dtype=float),
             min_area=np.asarray(self.config.min_blob_area, dtype=float)[self.target_cls],
+            trace_below=np.asarray(self.config.trace_below, dtype=float)[self.target_cls],
             sample_target=sample_target,
             sample_lateral=np.array(s_lat, dtype=float),
             sample_dz=np.array(s_dz, dtype=float),
@@ -257,6 +258,8 @@ class GeometricVision:
             half_tan=float(proj.half_tan),
             view_width=float(self.config.view_width),
             rows=float(self.config.height),
+            view_cos=np.cos(np.asarray(proj.view_centres, dtype=float)),
+            view_sin=np.sin(np.asarray(proj.view_centres, dtype=float)),
         )
         shape_nt = (n, n_targets)
         self.front = kernels.FrontBuffers(
@@ -281,6 +284,7 @@ class GeometricVision:
             sample_ok=np.zeros((n, n_samples), dtype=np.bool_),
             order=np.zeros((3, n_targets), dtype=np.int64),
             ray_geom=np.zeros(1, dtype=np.int32),
+            pixel_ray=np.zeros(3),
         )
         poses = kernels.MujocoPoses(
             d.site_xpos, d.site_xmat, d.geom_xpos, d.geom_xmat, m._address, d._address
@@ -306,6 +310,7 @@ class GeometricVision:
         self._nearest = bind(
             pick(self.backend, kernels.nearest, kernels.nearest_reference), self.scene, self.nearest
         )
+        self._traced_area = pick(self.backend, kernels.traced_area, kernels.traced_area_reference)
         self.merging = kernels.MergeBuffers(
             seen=np.zeros(shape_nt, dtype=np.bool_),
             visible_share=np.zeros(shape_nt),
@@ -397,6 +402,12 @@ class GeometricVision:
         hits = np.add.reduceat(hit, self.targets.sample_start, axis=1, dtype=float)
         visible_share = hits * self.targets.inv_samples
         area = full_area * visible_share
+        traced = candidate & self._traced(sample_ok, hit, full_area)
+        robots, traced_targets = np.nonzero(traced)
+        if len(robots):
+            pixels = np.zeros(len(robots))
+            self._traced_area(self.scene, robots, traced_targets, pixels)
+            area[robots, traced_targets] = pixels
         seen = candidate & (area >= self.targets.min_area)
         np.copyto(self.merging.seen, seen)
         np.copyto(self.merging.visible_share, visible_share)
@@ -413,6 +424,38 @@ class GeometricVision:
             candidate=candidate,
             blob_spread=self.merging.spread.copy(),
         )
+
+    def _traced(
+        self, sample_ok: np.ndarray, hit: np.ndarray, full_area: np.ndarray
+    ) -> np.ndarray:
+        """(n, T): the targets measured pixel by pixel. A small target (footprint under
+        ``trace_below``) that could reach its class's area if every sample in view were seen,
+        one of whose samples, read in order, is hidden before the samples' estimate (footprint
+        × seen share) reaches that area, and one of whose samples is seen: the targets whose
+        samples :meth:`nearest_targets` reads lazily and then traces (``kernels.nearest``)."""
+        tt = self.targets
+        step, need = tt.inv_samples, tt.min_area
+        shape = full_area.shape
+        seen = np.zeros(shape)
+        read = np.zeros(shape)
+        first_miss = np.full(shape, np.inf)
+        certain_at = np.full(shape, np.inf)
+        last = len(tt.sample_target) - 1
+        for k in range(int((tt.sample_end - tt.sample_start).max(initial=0))):
+            s = tt.sample_start + k
+            exists = s < tt.sample_end
+            s = np.minimum(s, last)
+            ok = sample_ok[:, s] & exists
+            shown = hit[:, s] & ok
+            read += ok
+            seen += shown
+            first_miss = np.where(ok & ~shown & np.isinf(first_miss), read, first_miss)
+            certain = shown & (full_area * (seen * step) >= need)
+            certain_at = np.where(certain & np.isinf(certain_at), read, certain_at)
+        reachable = full_area * (read * step) >= need
+        small = (full_area < tt.trace_below) & reachable & (seen > 0)
+        traced: np.ndarray = small & (first_miss < certain_at)
+        return traced
 
     def nearest_targets(self) -> kernels.NearestTargets:
         """Each robot's nearest visible target of each class, noise-free: :attr:`nearest`.

@@ -104,6 +104,9 @@ class TargetTable(NamedTuple):
     #: that edge past its body (0 for cylinders)
     edge_slope: Floats
     min_area: Floats  #: (T,) px, the class's smallest detectable blob
+    #: (T,) px, a target whose full footprint covers fewer pixels is measured pixel by pixel
+    #: once a sample sees it (:func:`traced_area`); 0: never
+    trace_below: Floats
     sample_target: Ints  #: (S,) target of each sample
     sample_lateral: Floats  #: (S,) m, offset along the target's width axis
     sample_dz: Floats  #: (S,) m, vertical offset
@@ -135,6 +138,8 @@ class CameraModel(NamedTuple):
     half_tan: float  #: tan of half a view's horizontal angle
     view_width: float  #: pixel columns per view
     rows: float  #: pixel rows of the strip
+    view_cos: Floats  #: (n_views,) cos of each view's axis bearing
+    view_sin: Floats  #: (n_views,) and its sin
 
 
 class FrontBuffers(NamedTuple):
@@ -161,6 +166,7 @@ class FrontBuffers(NamedTuple):
     sample_ok: Bools  #: (n, S) sample inside the field of view (and of a candidate)
     order: Ints  #: (3, T) scratch: each class's candidates found so far, nearest first
     ray_geom: npt.NDArray[np.int32]  #: (1,) geom hit by the last ray
+    pixel_ray: Floats  #: (3,) camera-to-pixel vector of :func:`traced_area`, world frame
 
 
 class UniformGrid(NamedTuple):
@@ -868,6 +874,162 @@ def first_hit(
     return int(hit[0])
 
 
+# --- the pixels of a small target ----------------------------------------------------------------
+#: m, how far past a target's far side a pixel's ray reaches (its length only bounds the geoms
+#: :func:`first_hit` tests; the geom hit is ``mj_ray``'s at any length).
+TRACE_MARGIN = 0.05
+
+
+def _centre_out(k: int) -> int:
+    """The k-th offset of 0, +1, -1, +2, -2, ...: a footprint's pixels are tried from its
+    middle out, so a lazy count finds the pixels of an unhidden target first."""
+    return (k + 1) // 2 if k % 2 == 1 else -(k // 2)
+
+
+def _pixel_vector(
+    camera: CameraModel, rot: Floats, column: int, row: int, reach: float, out: Floats
+) -> None:
+    """The vector from a camera (frame ``rot``, row-major) through the centre of pixel
+    (``column``, ``row``) of its strip, reaching ``reach`` m horizontally, in the world frame,
+    into ``out``. The strip wraps: ``column`` may lie outside it.
+
+    In view coordinates (x forward, y left, z up) the pixel's centre is at (1, tan(rel), v):
+    tan(rel) from its column (:class:`~cyber_rodent.vision.projection.OmniProjection`'s
+    ``column_u`` negated), v from its row."""
+    strip = int(camera.n_views * camera.view_width)
+    c = column % strip
+    view = int(c // camera.view_width)
+    x = c - view * camera.view_width + 0.5
+    tan_rel = camera.half_tan - x / camera.px_per_u
+    v = camera.v_top - (row + 0.5) / camera.px_per_v
+    cv, sv = camera.view_cos[view], camera.view_sin[view]
+    dx = cv - sv * tan_rel
+    dy = sv + cv * tan_rel
+    scale = reach / math.sqrt(1.0 + tan_rel * tan_rel)
+    for k in range(3):
+        out[k] = scale * (rot[3 * k] * dx + rot[3 * k + 1] * dy + rot[3 * k + 2] * v)
+
+
+def _footprint(camera: CameraModel, f: FrontBuffers, i: int, t: int) -> tuple[int, int, int, int]:
+    """The first and last column and row of the pixel centres target ``t``'s footprint covers
+    in robot ``i``'s strip (:func:`_project` wrote its edges); columns may lie outside the
+    strip, which wraps."""
+    c0 = math.ceil(f.left_px[i, t] - 0.5)
+    c1 = math.floor(f.right_px[i, t] - 0.5)
+    r0 = max(math.ceil(f.top_px[i, t] - 0.5), 0)
+    r1 = min(math.floor(f.bottom_px[i, t] - 0.5), int(camera.rows) - 1)
+    return c0, c1, r0, r1
+
+
+_centre_out_compiled = jit_inline(_centre_out)
+_pixel_vector_compiled = jit_inline(_pixel_vector)
+_footprint_compiled = jit_inline(_footprint)
+
+
+@jit_inline
+def _traced(
+    scene: GeometricScene, i: int, t: int, need: float, lazy: bool, cull: bool
+) -> float:
+    """How many pixels of target ``t``'s footprint show it to robot ``i``: a ray through each
+    covered pixel centre, middle out, counts when the first geom it hits is the target's, as a
+    rasteriser draws the nearest surface at a pixel's centre. With ``lazy``, the count stops
+    once it reaches ``need`` or cannot. The rays are :func:`first_hit`'s with ``cull`` (the
+    grids binned), else ``mj_ray``'s: the same geom."""
+    poses, targets, camera, f = scene.poses, scene.targets, scene.camera, scene.front
+    c0, c1, r0, r1 = _footprint_compiled(camera, f, i, t)
+    if c1 < c0 or r1 < r0:
+        return 0.0
+    total = (c1 - c0 + 1) * (r1 - r0 + 1)
+    reach = f.distance[i, t] + 2.0 * targets.half_width[t] + TRACE_MARGIN
+    mid_c, mid_r = (c0 + c1) // 2, (r0 + r1) // 2
+    n_c = 2 * max(mid_c - c0, c1 - mid_c) + 1
+    n_r = 2 * max(mid_r - r0, r1 - mid_r) + 1
+    goal = targets.target_geom[t]
+    exclude = targets.exclude_body[i]
+    rot = f.rot[i]
+    row_size = np.int64(_ROW)
+    pnt = np.int64(f.cam.ctypes.data) + i * row_size
+    vec = np.int64(f.pixel_ray.ctypes.data)
+    groups_ptr = np.int64(targets.geom_groups.ctypes.data)
+    geom_ptr = np.int64(f.ray_geom.ctypes.data)
+    shown, tried = 0, 0
+    for a in range(n_r):
+        r = mid_r + _centre_out_compiled(a)
+        if r < r0 or r > r1:
+            continue
+        for b in range(n_c):
+            c = mid_c + _centre_out_compiled(b)
+            if c < c0 or c > c1:
+                continue
+            _pixel_vector_compiled(camera, rot, c, r, reach, f.pixel_ray)
+            if cull:
+                hit = first_hit(
+                    poses, scene.grids, targets.geom_groups, exclude, f.cam[i], f.pixel_ray,
+                    pnt, vec, f.ray_geom,
+                )  # fmt: skip
+            else:
+                _MJ_RAY(
+                    poses.model_address, poses.data_address, pnt, vec, groups_ptr,
+                    np.uint8(1), np.int32(exclude), geom_ptr, np.int64(0),
+                )  # fmt: skip
+                hit = f.ray_geom[0]
+            tried += 1
+            if hit == goal:
+                shown += 1
+            if lazy and (shown >= need or shown + total - tried < need):
+                return float(shown)
+    return float(shown)
+
+
+def _traced_reference(
+    scene: GeometricScene, i: int, t: int, need: float, lazy: bool, cull: bool
+) -> float:
+    """:func:`_traced` in Python, its rays through ``ctypes``' ``mj_ray`` (``cull`` is
+    ignored: the geom hit is the same)."""
+    poses, targets, camera, f = scene.poses, scene.targets, scene.camera, scene.front
+    c0, c1, r0, r1 = _footprint(camera, f, i, t)
+    if c1 < c0 or r1 < r0:
+        return 0.0
+    total = (c1 - c0 + 1) * (r1 - r0 + 1)
+    reach = float(f.distance[i, t] + 2.0 * targets.half_width[t] + TRACE_MARGIN)
+    mid_c, mid_r = (c0 + c1) // 2, (r0 + r1) // 2
+    goal = int(targets.target_geom[t])
+    rows = [mid_r + _centre_out(a) for a in range(2 * max(mid_r - r0, r1 - mid_r) + 1)]
+    columns = [mid_c + _centre_out(b) for b in range(2 * max(mid_c - c0, c1 - mid_c) + 1)]
+    pnt = f.cam.ctypes.data + i * _ROW
+    shown, tried = 0, 0
+    for r in (r for r in rows if r0 <= r <= r1):
+        for c in (c for c in columns if c0 <= c <= c1):
+            _pixel_vector(camera, f.rot[i], c, r, reach, f.pixel_ray)
+            _MJ_RAY_REFERENCE(
+                poses.model_address, poses.data_address, pnt, f.pixel_ray.ctypes.data,
+                targets.geom_groups.ctypes.data, 1, int(targets.exclude_body[i]),
+                f.ray_geom.ctypes.data, 0,
+            )  # fmt: skip
+            tried += 1
+            shown += int(f.ray_geom[0] == goal)
+            if lazy and (shown >= need or shown + total - tried < need):
+                return float(shown)
+    return float(shown)
+
+
+@jit
+def traced_area(scene: GeometricScene, robots: Ints, target_ids: Ints, out: Floats) -> None:
+    """``out[k]``: the pixels of target ``target_ids[k]`` that robot ``robots[k]`` sees, each
+    pixel's ray cast (:func:`_traced`); :func:`front` must have placed them. The full pass
+    measures with it the small targets that some sample sees."""
+    for k in range(robots.shape[0]):
+        out[k] = _traced(scene, robots[k], target_ids[k], 0.0, False, False)
+
+
+def traced_area_reference(
+    scene: GeometricScene, robots: Ints, target_ids: Ints, out: Floats
+) -> None:
+    """:func:`traced_area` in Python."""
+    for k in range(robots.shape[0]):
+        out[k] = _traced_reference(scene, int(robots[k]), int(target_ids[k]), 0.0, False, False)
+
+
 # --- nearest -----------------------------------------------------------------------------------
 @jit_inline
 def nearest(scene: GeometricScene, out: NearestTargets) -> None:
@@ -982,6 +1144,10 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
                     if not full >= need:  # too small to be seen even in full
                         f.candidate[i, t] = False
                         continue
+                    # A small target with a sample hidden before its samples' estimate is
+                    # certain, and one seen, is measured pixel by pixel (``traced``).
+                    small = full < targets.trace_below[t]
+                    traced = False
                     step = targets.inv_samples[t]
                     first, end = targets.sample_start[t], targets.sample_end[t]
                     left = 0
@@ -990,7 +1156,9 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
                         left += f.sample_ok[i, s]
                     hits = 0
                     seen = full * (hits * step) >= need
-                    while not seen and left > 0 and full * ((hits + left) * step) >= need:
+                    while (
+                        not seen and left > 0 and (traced or full * ((hits + left) * step) >= need)
+                    ):
                         s = first
                         while not f.sample_ok[i, s]:
                             s += 1
@@ -1010,7 +1178,12 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
                             hit = f.ray_geom[0]
                         if hit == targets.sample_geom[s]:
                             hits += 1
-                            seen = full * (hits * step) >= need
+                            seen = traced or full * (hits * step) >= need
+                        elif small:
+                            traced = True
+                            seen = hits > 0
+                    if seen and traced:
+                        seen = _traced(scene, i, t, need, True, cull) >= need
                     if seen:
                         out.visible[i, c] = True
                         out.distance[i, c] = distance[i, t]
@@ -1044,11 +1217,16 @@ def nearest_reference(scene: GeometricScene, out: NearestTargets) -> None:
                 if masked[i, t] == math.inf:  # no candidate left (or the padding column)
                     break
                 full, need, step = f.full_area[i, t], targets.min_area[t], targets.inv_samples[t]
+                small, traced = bool(full < targets.trace_below[t]), False
                 samples = range(int(targets.sample_start[t]), int(targets.sample_end[t]))
                 in_view = [s for s in samples if f.sample_ok[i, s]]
                 hits = 0
                 seen = full * (hits * step) >= need
-                while not seen and in_view and full * ((hits + len(in_view)) * step) >= need:
+                while (
+                    not seen
+                    and in_view
+                    and (traced or full * ((hits + len(in_view)) * step) >= need)
+                ):
                     s = in_view.pop(0)
                     _MJ_RAY_REFERENCE(
                         poses.model_address, poses.data_address, cam_ptr + i * _ROW,
@@ -1057,7 +1235,12 @@ def nearest_reference(scene: GeometricScene, out: NearestTargets) -> None:
                     )  # fmt: skip
                     if f.ray_geom[0] == targets.sample_geom[s]:
                         hits += 1
-                        seen = full * (hits * step) >= need
+                        seen = traced or full * (hits * step) >= need
+                    elif small:
+                        traced = True
+                        seen = hits > 0
+                if seen and traced:
+                    seen = _traced_reference(scene, i, t, need, True, False) >= need
                 if seen:
                     out.visible[i, c] = True
                     out.distance[i, c] = f.distance[i, t]

@@ -122,6 +122,7 @@ LATER_FIELDS: tuple[tuple[Any, ...], ...] = (
     ("world", "pack_wall_clearance", 0.2),
     ("world", "pack_reactivation_steps", 0),
     ("world", "field_size", 2.3),
+    ("camera", "trace_below", (0, 0, 0)),
 )
 
 
