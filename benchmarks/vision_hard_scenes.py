@@ -4,8 +4,8 @@ Each family of :mod:`cyber_rodent.vision.hard_scenes` (robots in a row, targets 
 robots gathered on a pack, view seams, far corners, pack clusters, mating pairs) is built
 ``--scenes`` times, seeded; both providers observe every scene and
 :func:`cyber_rodent.vision.agreement.compare_scene` matches the rendered blobs to the true
-targets by bearing and distance. Per family it reports, for targets within ``--within`` m
-(default 2) and beyond:
+targets by class, bearing, distance and area. Per family it reports, for targets within
+``--within`` m (default 2) and beyond:
 
 * **per target**: the share of (observer, candidate target) pairs on which both providers agree
   (seen or not), over every pair and over the family's designed pairs;

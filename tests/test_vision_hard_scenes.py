@@ -13,7 +13,7 @@ import pytest
 
 from cyber_rodent.vision import BATTERY, FACE, Blob
 from cyber_rodent.vision import segmentation_kernels as seg_kernels
-from cyber_rodent.vision.agreement import compare_scene, match_blobs
+from cyber_rodent.vision.agreement import compare_scene, match_blobs, merge_room
 from cyber_rodent.vision.geometric import GeometricVision
 from cyber_rodent.vision.hard_scenes import (
     FAMILIES,
@@ -126,6 +126,39 @@ def test_matcher_uses_distance_and_bearing() -> None:
     spread = np.radians([3.0])
     got = match_blobs(bearing[:1], distance[:1], half[:1], [_blob(16.6, 0.5)], px, spread)
     assert got[0] == 0
+
+
+def test_matcher_pairs_by_area_too() -> None:
+    """A near face (0.60 m, 6 x 10 px footprint) and a far one hidden behind it (0.64 m,
+    3 x 4 px), half a degree apart; one 55 px blob at 0.62 m between them. Bearing and
+    distance alone give the blob to the far face; it cannot hold 55 px (at most 2 x 4 x 5 + 4),
+    so area gives it to the near one, whose room includes the far face's pixels (a merge)."""
+    px = 2 * math.pi / 512
+    bearing = np.radians([10.0, 10.5])
+    distance = np.array([0.60, 0.64])
+    half = np.array([0.04, 0.04])
+    blob = [Blob(cls=FACE, bearing=math.radians(10.4), distance=0.62, area=55.0)]
+    np.testing.assert_array_equal(match_blobs(bearing, distance, half, blob, px), [-1, 0])
+    width, height = np.array([6.0, 3.0]), np.array([10.0, 4.0])
+    size = {"width_px": width, "height_px": height}
+    np.testing.assert_array_equal(match_blobs(bearing, distance, half, blob, px, **size), [0, -1])
+    room = merge_room(bearing, distance, half, width, height, px)
+    np.testing.assert_array_equal(room, [7 * 11 + 4 * 5, 4 * 5])
+    # A blob larger than the near face's own footprint but within its room (the far face
+    # merged into it) is still the near face's.
+    merged = [Blob(cls=FACE, bearing=math.radians(10.2), distance=0.60, area=70.0)]
+    got = match_blobs(bearing, distance, half, merged, px, **size)
+    np.testing.assert_array_equal(got, [0, -1])
+    # Both could hold a 14 px blob: the closer area wins (the far face), where bearing and
+    # distance alone pick the near one.
+    small = [Blob(cls=FACE, bearing=math.radians(10.2), distance=0.615, area=14.0)]
+    np.testing.assert_array_equal(match_blobs(bearing, distance, half, small, px), [0, -1])
+    np.testing.assert_array_equal(match_blobs(bearing, distance, half, small, px, **size), [-1, 0])
+    # A target without a footprint bounds nothing: the camera's blob still counts for it.
+    got = match_blobs(
+        bearing[1:], distance[1:], half[1:], blob, px, width_px=np.zeros(1), height_px=height[1:]
+    )
+    np.testing.assert_array_equal(got, [0])
 
 
 # --- geometric: footprints, edge-on faces, merges ------------------------------------------------

@@ -3,10 +3,13 @@
 Both providers observe the same state. The geometric provider says, for every candidate target
 of every robot (other robots' lit LEDs and faces, every pack), whether it is visible
 (:meth:`GeometricVision.measure_targets`). The rendered provider's blobs are matched one-to-one
-to true targets of the same class by bearing *and* distance (:func:`match_blobs`), without
-regard to what the geometric provider said, so neither provider is favoured. A target is
-"rendered-detected" when a blob matched it. For targets both providers detect, the bearing
-error and the relative distance error are recorded.
+to true targets of the same colour class by bearing, distance *and* area (:func:`match_blobs`),
+without regard to what the geometric provider said, so neither provider is favoured: a blob
+that a target's whole projected footprint (with the farther targets of its class a merge could
+join to it) cannot hold is not that target's, and among the possible pairs the closest in
+bearing, distance and area are taken first. A target is "rendered-detected" when a blob matched
+it. For targets both providers detect, the bearing error and the relative distance error are
+recorded.
 
 The controller and the behaviours read only the nearest target of each class, so
 :func:`compare_nearest` compares that too: the two providers agree on a robot's input of one
@@ -66,6 +69,52 @@ BEARING_MARGIN_DEG = 2.0
 #: rendered distance is good to a few percent, while a blob that holds several touching
 #: targets has its bearing between them and the nearest one's distance.
 DISTANCE_SCALE = 0.1
+#: Relative area difference that costs as much as a bearing error of the whole window: a
+#: blob smaller than the target's whole footprint (partly hidden) or larger than its
+#: :func:`merge_room` differs by the gap over the larger; one in between (a merge) by nothing.
+#: A partly hidden target's blob is smaller than its footprint, so area only breaks near ties
+#: in bearing and distance.
+AREA_SCALE = 1.0
+#: A blob may hold at most this many times the pixels of the target's whole footprint grown by
+#: a pixel in width and height (with the farther targets of its class whose blobs could merge
+#: into it), plus :data:`AREA_MARGIN_PX`: rasterised outlines and a face plate's edge add
+#: pixels (a plate seen edge-on at 0.16 m: 126 px for a 2 x 29 px footprint).
+AREA_FACTOR = 2.0
+#: px, see :data:`AREA_FACTOR`.
+AREA_MARGIN_PX = 4.0
+
+
+def merge_room(
+    bearing: np.ndarray, distance: np.ndarray, half_width: np.ndarray, width_px: np.ndarray,
+    height_px: np.ndarray, px_angle: float,
+) -> np.ndarray:  # fmt: skip
+    """Each target's grown footprint plus those of the farther targets its blob could swallow.
+
+    A blob that joins touching targets of one colour is measured at the nearest one's
+    distance, so a target's blob may hold the pixels of the targets of its class at least as
+    far as it whose angular extents touch its own (within max(2°, 2 px)), but not a nearer
+    one's. Each footprint is grown by a pixel in width and height. Poses only: what either
+    provider saw plays no part.
+
+    Args:
+        bearing, distance, half_width: (T,) as for :func:`match_blobs`.
+        width_px, height_px: (T,) px, each target's whole projected footprint.
+
+    Returns:
+        (T,) px, the most pixels a blob of each target can hold before :data:`AREA_FACTOR`.
+    """
+    grown = (width_px + 1.0) * (height_px + 1.0)
+    safe = np.maximum(distance, 1e-6)
+    reach = np.arctan2(half_width, safe)
+    margin = max(math.radians(BEARING_MARGIN_DEG), 2 * px_angle)
+    turn = bearing[None, :] - bearing[:, None] + math.pi
+    gap = np.abs(np.remainder(turn, 2 * math.pi) - math.pi)
+    touch = gap <= reach[:, None] + reach[None, :] + margin
+    farther = distance[None, :] >= distance[:, None]
+    others = touch & farther
+    np.fill_diagonal(others, False)
+    room: np.ndarray = grown + others.astype(float) @ grown
+    return room
 
 
 def match_blobs(
@@ -75,15 +124,21 @@ def match_blobs(
     blobs: list[Blob],
     px_angle: float,
     spread: np.ndarray | None = None,
+    width_px: np.ndarray | None = None,
+    height_px: np.ndarray | None = None,
 ) -> np.ndarray:
     """Pair one robot's blobs of one class with the true targets of that class, one to one.
 
     A (target, blob) pair is possible when the blob's bearing is within the target's angular
-    half width plus max(2°, 2 px) of the target's bearing and its distance within
-    :data:`DISTANCE_TOLERANCE` of the target's. Pairs are taken greedily, the smallest
-    ``(bearing error / window)² + (relative distance error / DISTANCE_SCALE)²`` first (ties:
-    lower target, then lower blob index), whatever either provider said about visibility, so
-    the matcher favours neither.
+    half width plus max(2°, 2 px) of the target's bearing, its distance within
+    :data:`DISTANCE_TOLERANCE` of the target's and, given the targets' footprints, its area
+    at most :data:`AREA_FACTOR` × :func:`merge_room` + :data:`AREA_MARGIN_PX` (a blob of a
+    nearer target is not credited to a small target hidden behind it). Pairs are taken
+    greedily, the smallest ``(bearing error / window)² + (relative distance error /
+    DISTANCE_SCALE)² + (relative area difference / AREA_SCALE)²`` first (the area difference:
+    how far the blob falls short of the target's whole footprint ``width_px * height_px`` or
+    exceeds its :func:`merge_room`, over the larger; ties: lower target, then lower blob
+    index), whatever either provider said about visibility, so the matcher favours neither.
 
     Args:
         bearing, distance, half_width: (T,) each target's true bearing (rad), horizontal
@@ -93,6 +148,9 @@ def match_blobs(
         spread: (T,) rad, how far each target's blob reaches beyond its own half width
             because touching targets of its colour merged into it (their blob's bearing is
             their centroid's); widens the bearing window.
+        width_px, height_px: (T,) px, each target's whole projected footprint if nothing hid
+            it (pixel columns and rows); None: area plays no part. A target with an empty
+            footprint bounds nothing, and any blob differs from it by the whole.
 
     Returns:
         (T,) index into ``blobs`` of each target's blob, -1 where none matched.
@@ -111,6 +169,21 @@ def match_blobs(
     err_d = np.abs(b_dist[None, :] - distance[:, None]) / safe[:, None]
     ok = (err_b <= window[:, None]) & (err_d <= DISTANCE_TOLERANCE)
     cost = (err_b / window[:, None]) ** 2 + (err_d / DISTANCE_SCALE) ** 2
+    if width_px is not None and height_px is not None:
+        footprint = width_px * height_px
+        b_area = np.array([b.area for b in blobs], dtype=float)
+        room = merge_room(bearing, distance, half_width, width_px, height_px, px_angle)
+        # The area a blob of the target should have: its footprint, or more up to its room
+        # (a merge, credited to its nearest target as before); none without a footprint.
+        expect = np.clip(b_area[None, :], footprint[:, None], room[:, None])
+        expect = np.where(footprint[:, None] > 0.0, expect, 0.0)
+        # A target without a footprint (edge-on beyond the outline's rule) has no bound: its
+        # blob, if the camera sees one, still counts against the provider that missed it.
+        room = np.where(footprint > 0.0, room, np.inf)
+        ok &= b_area[None, :] <= AREA_FACTOR * room[:, None] + AREA_MARGIN_PX
+        larger = np.maximum(np.maximum(b_area[None, :], expect), 1.0)
+        err_a = np.abs(b_area[None, :] - expect) / larger
+        cost = cost + (err_a / AREA_SCALE) ** 2
     t_idx, b_idx = np.nonzero(ok)
     order = np.lexsort((b_idx, t_idx, cost[t_idx, b_idx]))
     used = np.zeros(len(blobs), dtype=bool)
@@ -125,7 +198,8 @@ def match_blobs(
 def compare_robot(
     geo: GeometricVision, meas: TargetMeasurements, frame: VisionFrame, robot: int
 ) -> tuple[list[TargetComparison], list[Blob]]:
-    """Match one robot's rendered blobs to its candidate targets (:func:`match_blobs`).
+    """Match one robot's rendered blobs to its candidate targets (:func:`match_blobs`): blobs
+    of each colour class to that class's targets, by bearing, distance and area.
 
     Returns:
         The comparison of every candidate target (another robot's lit LED, another robot's
@@ -155,6 +229,8 @@ def compare_robot(
             [blobs[j] for j in of_class],
             px_angle,
             meas.blob_spread[robot, targets],
+            meas.width_px[robot, targets],
+            meas.height_px[robot, targets],
         )
         for t, m in zip(targets.tolist(), matched.tolist(), strict=True):
             distance = float(meas.distance[robot, t])
