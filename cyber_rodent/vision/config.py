@@ -142,7 +142,7 @@ class CameraConfig:
         DEFAULT_MAX_DISTANCE, 0.0, 100.0, low_open=True, unit="m", source="docs/design.md §9.21"
     )
     min_blob_area: tuple[int, int, int] = (1, 3, 3)
-    trace_below: tuple[int, int, int] = (24, 60, 60)
+    trace_below: tuple[int, int, int] = (48, 120, 120)
     led: ColourThreshold = GREEN_LED
     face: ColourThreshold = RED_FACE
     battery: ColourThreshold = BLUE_BATTERY
