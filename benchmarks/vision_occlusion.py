@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from cyber_rodent.vision import CLASS_NAMES, N_CLASSES, CameraConfig
+from cyber_rodent.vision import CLASS_NAMES, N_CLASSES, CameraConfig, kernels
 from cyber_rodent.vision.agreement import NearestComparison, compare_scene
 from cyber_rodent.vision.geometric import GeometricVision
 from cyber_rodent.vision.hard_scenes import Family, place
@@ -77,6 +77,9 @@ class PairRow:
         geometric, rendered: whether each provider detected it.
         geometric_area: px, the geometric provider's expected visible area.
         blob_area: px, the matched rendered blob's area (0 if none).
+        traced_area: px, the target's pixels counted one ray per pixel centre
+            (``kernels.traced_area``), for every partly hidden candidate (0 for the others):
+            the pixel model's own accuracy, whether or not the provider's rule traced it.
     """
 
     family: str
@@ -95,6 +98,7 @@ class PairRow:
     rendered: bool
     geometric_area: float
     blob_area: float
+    traced_area: float = 0.0
 
     @property
     def bucket(self) -> str:
@@ -137,6 +141,12 @@ def run_family(family: Family, scene_seeds: Sequence[int], config: CameraConfig)
             comparison = compare_scene(geo, ren)
             meas = comparison.measurements
             designed = set(scene.designed)
+            partly = meas.candidate & (meas.visible_share > 0.0) & (meas.visible_share < 1.0)
+            robots, targets = np.nonzero(partly)
+            pixels = np.zeros(len(robots))
+            kernels.traced_area(geo.scene, robots, targets, pixels)
+            traced = np.zeros_like(meas.area)
+            traced[robots, targets] = pixels
             for r in comparison.targets:
                 i, t = r.robot, r.target
                 result.pairs.append(
@@ -148,6 +158,7 @@ def run_family(family: Family, scene_seeds: Sequence[int], config: CameraConfig)
                         spread=float(meas.blob_spread[i, t]), designed=(i, t) in designed,
                         geometric=r.geometric, rendered=r.rendered,
                         geometric_area=r.geometric_area, blob_area=r.blob_area,
+                        traced_area=float(traced[i, t]),
                     )
                 )  # fmt: skip
             result.nearest += comparison.nearest
@@ -186,11 +197,14 @@ def area_pairs(pairs: Sequence[PairRow], partly: bool) -> list[PairRow]:
     ]
 
 
-def area_error(pairs: Sequence[PairRow]) -> Row:
+def area_error(pairs: Sequence[PairRow], pixel_model: bool = False) -> Row:
     """|geometric area − blob area| in px and relative to the blob (median, p95), the median of
     the signed relative error (> 0: the geometric provider expects more pixels), and the share
-    within :data:`AREA_GOOD_PX` or :data:`AREA_GOOD_REL`."""
-    signed = np.array([p.geometric_area - p.blob_area for p in pairs])
+    within :data:`AREA_GOOD_PX` or :data:`AREA_GOOD_REL`. With ``pixel_model``, of the traced
+    area (``PairRow.traced_area``) instead of the provider's."""
+    signed = np.array(
+        [(p.traced_area if pixel_model else p.geometric_area) - p.blob_area for p in pairs]
+    )
     gap = np.abs(signed)
     blob = np.maximum([p.blob_area for p in pairs], 1.0) if len(gap) else gap
     rel = gap / blob
@@ -250,6 +264,8 @@ def summary(results: Sequence[FamilyResult], within: float, name: str | None = N
         for subset, partly in (("partly hidden", True), ("fully visible", False)):
             sel = [p for p in area_pairs(pairs, partly) if cls < 0 or p.cls == cls]
             add("area", "all", cls, subset, area_error(sel))
+            if partly:
+                add("area", "all", cls, "partly hidden, pixel model", area_error(sel, True))
     return out
 
 
@@ -318,7 +334,7 @@ def markdown(rows: list[Row], families: list[str], within: float) -> str:
         "|---|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for f in families:
-        for subset in ("partly hidden", "fully visible"):
+        for subset in ("partly hidden", "partly hidden, pixel model", "fully visible"):
             r = _find(rows, family=f, table="area", subset=subset, **{"class": "all"})
             lines.append(
                 f"| {f} | {subset} | {r['n']} | {_num(r['median_px'])} | {_num(r['p95_px'])} | "
@@ -364,6 +380,11 @@ def main(argv: Sequence[str] | None = None) -> list[Row]:
     ap.add_argument(
         "--families", default=",".join(f.name for f in FAMILIES), help="comma-separated names"
     )
+    ap.add_argument(
+        "--trace-below", default=None,
+        help="camera.trace_below as LED,FACE,PACK px (0,0,0: the samples' estimate alone, the "
+        "model before pixel tracing); default the camera's",
+    )  # fmt: skip
     ap.add_argument("--csv", type=Path, default=None, help="write the tables here (long form)")
     ap.add_argument("--rows", type=Path, default=None, help="write every pair here")
     args = ap.parse_args(argv)
@@ -374,10 +395,17 @@ def main(argv: Sequence[str] | None = None) -> list[Row]:
     chosen = [f for f in FAMILIES if f.name in names]
     scene_seeds = seeds(args.seeds, args.scenes)
     config = CameraConfig()
+    if args.trace_below is not None:
+        try:
+            trace = tuple(int(v) for v in args.trace_below.split(","))
+            config = CameraConfig(trace_below=trace)  # type: ignore[arg-type]
+        except ValueError as e:
+            ap.error(f"--trace-below: {e}")
     print(
         f"{args.scenes} scenes per family, seed set {args.seeds} "
         f"({scene_seeds[0] if scene_seeds else '-'}-{scene_seeds[-1] if scene_seeds else '-'});"
-        f" camera {config.n_views} x {config.view_width} x {config.height} px",
+        f" camera {config.n_views} x {config.view_width} x {config.height} px,"
+        f" trace_below {config.trace_below}",
         flush=True,
     )
     results = []

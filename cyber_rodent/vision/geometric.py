@@ -15,7 +15,9 @@ measures how well they agree):
 * **resolution**: a target is detected only if its expected visible area in the image (the
   pixel centres its outline covers at the configured resolution, as a rasteriser fills them,
   times the visible share of its samples) reaches the class's ``min_blob_area``, which gives
-  the camera's real range limit;
+  the camera's real range limit; a small target that a nearer body partly hides is instead
+  measured pixel by pixel, a ray through each pixel centre of its footprint
+  (``CameraConfig.trace_below``, docs/design.md §6);
 * a face plate is seen from the front, and edge-on from the side where it stands out of the
   chassis; a robot never sees its own LED or face; a dark LED and an inactive pack
   (``World.pack_active``) are no target, but still hide what is behind them;

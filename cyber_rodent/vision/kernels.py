@@ -11,7 +11,9 @@ it, each written twice with the same signature (``docs/design.md`` §3):
   pack, plate facing), and the occlusion sample rays with their field-of-view test;
 * :func:`nearest` / :func:`nearest_reference`: gather, front, then each class's candidates
   nearest first, casting MuJoCo's ``mj_ray`` at a candidate's samples only until its visibility
-  is certain (a target is visible iff ``full_area * hits / samples >= min_area``). The compiled
+  is certain (a target is visible iff ``full_area * hits / samples >= min_area``, or, for a
+  small target one of whose samples is hidden before that is certain, iff ``min_area`` of its
+  pixels show it: :func:`traced_area`). The compiled
   kernel computes a target's position, projected size and samples only when its search
   reaches it: targets are binned in a uniform grid (:class:`UniformGrid`) and reached ring of
   cells by ring, nearest cells first, and a candidate is tried only once no target left in
