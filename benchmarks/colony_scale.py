@@ -1,9 +1,11 @@
 """Cost per robot of a control step as the colony grows, at the paper's density.
 
 For N robots (default 4, 10, 25, 50, 100) the world is the paper's scaled up: a square field of
-side 2.3 m x sqrt(N / 4), round(5 N / 4) packs, 25 agents per robot, geometric vision,
-embodied evolution with the shipped behaviours. For each N this prints the cost per robot per
-control step of
+side 2.3 m x sqrt(N / 4), round(5 N / 4) packs (Python's rounding, half to even: 12 at 10
+robots, 62 at 50), 25 agents per robot, geometric vision, embodied evolution with the shipped
+behaviours. ``--population 100`` keeps the paper's population instead, 100 / N agents per robot:
+the colony study's settings (``benchmarks/colony_study.py``). For each N this prints the cost
+per robot per control step of
 
 * **physics**: the control step's bare ``mujoco.mj_step`` calls, replayed from the same
   states with the same wheel commands and docking welds as the loop integrated
@@ -22,7 +24,7 @@ sizes, so the sizes take turns: each of ``--rounds`` rounds times every size for
 and of the loop).
 
 Run: ``python -m benchmarks.colony_scale [--sizes 4,10,25,50,100] [--rounds 5]
-[--robot-steps 4000]``
+[--robot-steps 4000] [--population 100]``
 """
 
 from __future__ import annotations
@@ -41,12 +43,20 @@ from evolution.runner import EvolutionRunner, RunConfig
 AGENTS_PER_ROBOT = 25
 
 
-def colony_config(n_robots: int, method: str = "ee") -> RunConfig:
-    """The paper's world scaled to ``n_robots`` at its density: field 2.3 m x sqrt(N / 4),
-    round(5 N / 4) packs, 25 agents per robot."""
-    field_size = FIELD_SIZE * math.sqrt(n_robots / 4)
-    n_packs = round(5 * n_robots / 4)
-    evolution = EvolutionConfig(population_size=AGENTS_PER_ROBOT * n_robots, n_robots=n_robots)
+def paper_density(n_robots: int) -> tuple[float, int]:
+    """The field side (m) and pack count of ``n_robots`` at the paper's density (4 robots and
+    5 packs in 2.3 m x 2.3 m): 2.3 m x sqrt(N / 4) and round(5 N / 4) (half to even)."""
+    return FIELD_SIZE * math.sqrt(n_robots / 4), round(5 * n_robots / 4)
+
+
+def colony_config(
+    n_robots: int, method: str = "ee", population_size: int | None = None
+) -> RunConfig:
+    """The paper's world scaled to ``n_robots`` at its density (:func:`paper_density`), with
+    25 agents per robot, or ``population_size`` agents in all (it must divide by the robots)."""
+    field_size, n_packs = paper_density(n_robots)
+    population = AGENTS_PER_ROBOT * n_robots if population_size is None else population_size
+    evolution = EvolutionConfig(population_size=population, n_robots=n_robots)
     world = WorldConfig(field_size=field_size, n_robots=n_robots, n_packs=n_packs)
     return RunConfig(method=method, evolution=evolution, world=world)
 
@@ -64,15 +74,21 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--method", choices=("ee", "ce"), default="ee")
     parser.add_argument("--policies", choices=("auto", "trained", "reactive"), default="auto")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--population", type=int, default=None,
+        help="agents in all at every size (default: 25 per robot; the colony study: 100)",
+    )  # fmt: skip
     parser.add_argument("--json", help="also write the numbers to this JSON file")
     args = parser.parse_args(argv)
 
     policies, label = choose_policies(args.policies)
     sizes = [int(s) for s in args.sizes.split(",")]
-    print(f"behaviours: {label}; method {args.method.upper()}, geometric vision")
+    agents = "25 agents per robot" if args.population is None else f"{args.population} agents"
+    print(f"behaviours: {label}; method {args.method.upper()}, geometric vision, {agents}")
     runners = {}
     for n in sizes:
-        runners[n] = EvolutionRunner(colony_config(n, args.method), args.seed, policies)
+        config = colony_config(n, args.method, args.population)
+        runners[n] = EvolutionRunner(config, args.seed, policies)
         for _ in range(math.ceil(args.warmup_robot_steps / n)):
             runners[n].step()
     best: dict[int, dict[str, float]] = {}
@@ -90,7 +106,9 @@ def main(argv: list[str] | None = None) -> dict:
     rows = []
     for n, runner in runners.items():
         world = runner.config.world
-        rows.append({"robots": n, "packs": world.n_packs, "field_m": world.field_size, **best[n]})
+        rows.append({"robots": n, "packs": world.n_packs, "field_m": world.field_size,
+                     "agents_per_robot": runner.config.evolution.subpopulation_size,
+                     **best[n]})  # fmt: skip
     base = rows[0]
     print(
         "\ncost per robot per control step (us, each size's fastest round), and as a ratio to "
@@ -109,7 +127,8 @@ def main(argv: list[str] | None = None) -> dict:
             f"{row['loop_us']:>8.1f} {row['loop_ratio']:>5.2f} | "
             f"{row['loop_us'] / row['physics_us']:>14.2f}"
         )
-    result = {"policies": label, "method": args.method, "rows": rows}
+    result = {"policies": label, "method": args.method, "population": args.population,
+              "rows": rows}  # fmt: skip
     if args.json:
         with open(args.json, "w") as handle:
             json.dump(result, handle, indent=2)

@@ -46,25 +46,29 @@ def finished(run: Path) -> bool:
     return target > 0 and set(range(target)) <= generations
 
 
+def publish_run(run: Path, target: Path) -> bool:
+    """Copy one run's tables into ``target`` (each file atomically); False if ``target``
+    already held identical copies."""
+    names = PUBLISHED_FILES + tuple(n for n in OPTIONAL_FILES if (run / n).is_file())
+    same = all(
+        (target / name).exists() and (target / name).read_bytes() == (run / name).read_bytes()
+        for name in names
+    )
+    if same:
+        return False
+    target.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        shutil.copyfile(run / name, target / f".{name}.partial")
+        (target / f".{name}.partial").replace(target / name)
+    return True
+
+
 def publish(source: Path, destination: Path) -> list[str]:
     """Copy every finished run's tables; return the names of runs copied now."""
     copied = []
     for run in sorted(p for p in source.iterdir() if p.is_dir()):
-        if not finished(run):
-            continue
-        target = destination / run.name
-        names = PUBLISHED_FILES + tuple(n for n in OPTIONAL_FILES if (run / n).is_file())
-        same = all(
-            (target / name).exists() and (target / name).read_bytes() == (run / name).read_bytes()
-            for name in names
-        )
-        if same:
-            continue
-        target.mkdir(parents=True, exist_ok=True)
-        for name in names:
-            shutil.copyfile(run / name, target / f".{name}.partial")
-            (target / f".{name}.partial").replace(target / name)
-        copied.append(run.name)
+        if finished(run) and publish_run(run, destination / run.name):
+            copied.append(run.name)
     return copied
 
 

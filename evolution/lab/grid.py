@@ -27,15 +27,19 @@ Grid = tuple[tuple[str, tuple[Any, ...]], ...]
 
 @dataclass(frozen=True)
 class Cell:
-    """One combination of grid values.
+    """One combination of grid values, or one cell of a sweep's explicit cell list.
 
     Attributes:
         name: the directory name, e.g. ``reflex_max_steps=4,mate_consecutive_steps=1``.
         settings: the grid's values in this cell, by dotted key.
+        methods: the methods this cell runs (a subset of the sweep's); empty: every method of
+            the sweep. A grid's cells run every method; an explicit cell list
+            (``SweepSpec.cell_list``) may leave some out.
     """
 
     name: str
     settings: Mapping[str, Any]
+    methods: tuple[str, ...] = ()
 
 
 def format_value(value: Any) -> str:

@@ -67,7 +67,7 @@ import sys
 import tempfile
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -102,6 +102,9 @@ from evolution.runner.settings import merge
 
 EXECUTORS = ("local", "ray")
 POLICIES = ("trained", "reactive")
+#: Orders in which a sweep's runs start (:attr:`SweepSpec.runs`): cell by cell, or seed by
+#: seed across every cell (a sweep stopped part-way then has a few seeds of every cell).
+RUN_ORDERS = ("cell", "seed")
 #: Environment for worker processes: one BLAS / llvmpipe thread each, since runs already fill
 #: the cores one process per run.
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "LP_NUM_THREADS": "1"}
@@ -154,6 +157,14 @@ class SweepSpec:
             runs every method and seed, its settings over ``overrides``. Empty: one cell.
         max_steps: stop each run after this many control steps even if its generations are
             not complete (None: no budget).
+        cell_list: explicit cells, each with its own settings and, optionally, its own methods
+            (a subset of ``methods``): for settings that change together (a colony's robot
+            count, field side and packs), which a grid's product cannot express. Excludes
+            ``grid``; its cells' names must be distinct directory names.
+        order: ``"cell"`` (cell by cell, then seed, then method) or ``"seed"`` (seed by seed,
+            then cell, then method), the order in which the runs start (:attr:`runs`).
+        members: run only these members of the sweep (each one of its runs), in the sweep's
+            order; None: every run. What a caller passes to leave out runs it knows finished.
     """
 
     methods: tuple[str, ...]
@@ -163,6 +174,9 @@ class SweepSpec:
     policies: str = choice("trained", POLICIES)
     grid: Grid = ()
     max_steps: int | None = None
+    cell_list: tuple[Cell, ...] = ()
+    order: str = choice("cell", RUN_ORDERS)
+    members: tuple[SweepRun, ...] | None = None
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -179,28 +193,80 @@ class SweepSpec:
         check_integer("generations", self.generations, 1, MAX_GENERATIONS)
         if self.max_steps is not None:
             check_integer("max_steps", self.max_steps, 1, MAX_RUN_STEPS)
-        n_runs = len(self.methods) * len(self.seeds) * math.prod(len(v) for _, v in self.grid)
+        self._check_cell_list()
+        n_cells = len(self.cell_list) or math.prod(len(v) for _, v in self.grid)
+        n_runs = len(self.methods) * len(self.seeds) * n_cells
         if n_runs > MAX_RUNS:
             raise ValueError(
                 f"a sweep runs at most {MAX_RUNS} runs (cells x methods x seeds), got {n_runs}"
             )
+        if self.members is not None:
+            every = set(self._ordered_runs())
+            strays = [m for m in self.members if m not in every]
+            if strays:
+                raise ValueError(f"members must be runs of the sweep, got {strays[0]!r}")
+
+    def _check_cell_list(self) -> None:
+        if not self.cell_list:
+            return
+        if self.grid:
+            raise ValueError("a sweep takes a grid or a cell list, not both")
+        names = [c.name for c in self.cell_list if isinstance(c, Cell)]
+        if len(names) != len(self.cell_list):
+            raise ValueError("cell_list must hold Cell objects")
+        for name in names:
+            if not name or name in (".", "..") or "/" in name or os.sep in name:
+                raise ValueError(f"a cell's name must be a directory name, got {name!r}")
+        if len(set(names)) != len(names):
+            raise ValueError(f"cell names must not repeat, got {names!r}")
+        for c in self.cell_list:
+            if any(m not in self.methods for m in c.methods) or len(set(c.methods)) != len(
+                c.methods
+            ):
+                raise ValueError(
+                    f"cell {c.name}: methods must be distinct methods of the sweep "
+                    f"{self.methods!r}, got {c.methods!r}"
+                )
 
     @property
     def cells(self) -> tuple[Cell, ...]:
-        """The grid's cells (one unnamed cell without a grid)."""
-        return cells(self.grid) or (Cell("", {}),)
+        """The cell list, or the grid's cells (one unnamed cell without either)."""
+        return self.cell_list or cells(self.grid) or (Cell("", {}),)
+
+    def methods_of(self, cell: Cell) -> tuple[str, ...]:
+        """The methods ``cell`` runs, in the sweep's order."""
+        return tuple(m for m in self.methods if not cell.methods or m in cell.methods)
+
+    def _ordered_runs(self) -> list[SweepRun]:
+        if self.order == "seed":
+            return [
+                SweepRun(m, s, c.name)
+                for s in self.seeds
+                for c in self.cells
+                for m in self.methods_of(c)
+            ]
+        return [
+            SweepRun(m, s, c.name)
+            for c in self.cells
+            for s in self.seeds
+            for m in self.methods_of(c)
+        ]
 
     @property
     def runs(self) -> list[SweepRun]:
-        """Every (method, seed, cell) in a fixed order: cell by cell, seed by seed, then method.
+        """Every (method, seed, cell) in a fixed order: by default cell by cell, seed by seed,
+        then method; with ``order="seed"`` seed by seed, cell by cell, then method. Only
+        :attr:`members` where given.
 
         Workers take runs in this order, so a sweep stopped part-way (a machine's time limit, a
         cluster's time limit) has finished whole seeds of every method, which are comparable,
         rather than every seed of one method and none of the other.
         """
-        return [
-            SweepRun(m, s, c.name) for c in self.cells for s in self.seeds for m in self.methods
-        ]
+        ordered = self._ordered_runs()
+        if self.members is None:
+            return ordered
+        chosen = set(self.members)
+        return [member for member in ordered if member in chosen]
 
     def settings_of(self, cell: str) -> dict[str, Any]:
         """The settings of the runs in ``cell``: the sweep's overrides, then the cell's."""
@@ -209,14 +275,15 @@ class SweepSpec:
         return merge(self.overrides, chosen.settings)
 
     def check(self) -> None:
-        """Build every cell's config for every method, so a bad setting fails before any run.
+        """Build every cell's config for each of its methods, so a bad setting fails before
+        any run.
 
         Raises:
             ValueError: the first setting a config refuses (one line naming the key).
         """
 
         for c in self.cells:
-            for method in self.methods:
+            for method in self.methods_of(c):
                 check_run_config(make_config(method, **self.settings_of(c.name)))
 
 
@@ -460,22 +527,21 @@ def projected_seconds(spec: SweepSpec, workers: int) -> float:
     default = make_config("ee")
     default_physics = default.survival.control_dt / default.world.timestep
     total = 0.0
-    for cell in spec.cells:
-        for method in spec.methods:
-            config = make_config(method, **spec.settings_of(cell.name))
-            evo = config.evolution
-            steps = evo.subpopulation_size * evo.lifetime_steps * STEPS_PER_LIFE[method]
-            physics = config.survival.control_dt / config.world.timestep
-            cost = STEP_SECONDS * physics / default_physics
-            cost *= evo.n_robots / default.evolution.n_robots
-            if config.vision == "rendered":
-                cost *= RENDERED_STEP_COST
-            if evo.learning.enabled:
-                cost *= LEARNING_STEP_COST
-            run_steps = spec.generations * steps
-            if spec.max_steps is not None:
-                run_steps = min(run_steps, spec.max_steps)
-            total += len(spec.seeds) * run_steps * cost
+    for member in spec.runs:
+        config = make_config(member.method, **spec.settings_of(member.cell))
+        evo = config.evolution
+        steps = evo.subpopulation_size * evo.lifetime_steps * STEPS_PER_LIFE[member.method]
+        physics = config.survival.control_dt / config.world.timestep
+        cost = STEP_SECONDS * physics / default_physics
+        cost *= evo.n_robots / default.evolution.n_robots
+        if config.vision == "rendered":
+            cost *= RENDERED_STEP_COST
+        if evo.learning.enabled:
+            cost *= LEARNING_STEP_COST
+        run_steps = spec.generations * steps
+        if spec.max_steps is not None:
+            run_steps = min(run_steps, spec.max_steps)
+        total += run_steps * cost
     return total / max(1, min(workers, len(spec.runs)))
 
 
@@ -541,6 +607,7 @@ def sweep(
     keep_checkpoints: int = KEEP_CHECKPOINTS,
     chunk_generations: int = CHUNK_GENERATIONS,
     tensorboard: str | os.PathLike[str] | None = None,
+    on_run_done: Callable[[SweepRun], None] | None = None,
 ) -> dict[SweepRun, pd.DataFrame]:
     """Run every (method, seed, cell) of ``spec``; return their statistics tables.
 
@@ -559,6 +626,8 @@ def sweep(
         chunk_generations: with ``executor="ray"``: generations one task advances a run by.
         tensorboard: write every run's generations to TensorBoard as they close, each run
             in ``<tensorboard>/<cell>/<method>-seed<NNN>`` (:mod:`evolution.lab.monitor`).
+        on_run_done: called in this process with each run as soon as it has finished and
+            its run directory is complete (e.g. to publish its tables while the others run).
 
     Raises:
         ValueError: bad arguments, an unreachable Ray address, or a ``tensorboard``
@@ -591,10 +660,12 @@ def sweep(
         if executor == "local":
             return _sweep_local(
                 spec, out, workers or os.cpu_count() or 1, max_retries, keep_checkpoints, bar,
-                poll_seconds, board,
+                poll_seconds, board, on_run_done,
             )  # fmt: skip
         plan = _RayPlan(spec, out, keep_checkpoints, chunk_generations, board)
-        return _sweep_ray(plan, workers, ray_address, max_retries, bar, poll_seconds)
+        return _sweep_ray(
+            plan, workers, ray_address, max_retries, bar, poll_seconds, on_run_done
+        )
     finally:
         bar.close()
 
@@ -608,6 +679,7 @@ def _sweep_local(
     bar: _Progress,
     poll_seconds: float,
     board: Path | None = None,
+    on_run_done: Callable[[SweepRun], None] | None = None,
 ) -> dict[SweepRun, pd.DataFrame]:
     results: dict[SweepRun, pd.DataFrame] = {}
     failures: dict[SweepRun, int] = {}
@@ -651,6 +723,9 @@ def _sweep_local(
                             errors[key] = err
                         else:
                             todo.append(key)
+                        continue
+                    if on_run_done is not None:
+                        on_run_done(key)
             pool.shutdown(wait=True, cancel_futures=True)
     finally:
         for k, v in saved_env.items():
@@ -716,6 +791,7 @@ def _sweep_ray(
     max_retries: int,
     bar: _Progress,
     poll_seconds: float,
+    on_run_done: Callable[[SweepRun], None] | None = None,
 ) -> dict[SweepRun, pd.DataFrame]:
     try:
         import ray
@@ -803,6 +879,8 @@ def _sweep_ray(
                     continue
                 if result.finished:
                     results[member] = result.table
+                    if on_run_done is not None:
+                        on_run_done(member)
                 else:
                     submit(member)
             if not done or time.monotonic() - refreshed >= poll_seconds:
