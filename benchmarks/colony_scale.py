@@ -45,8 +45,9 @@ AGENTS_PER_ROBOT = 25
 
 def paper_density(n_robots: int) -> tuple[float, int]:
     """The field side (m) and pack count of ``n_robots`` at the paper's density (4 robots and
-    5 packs in 2.3 m x 2.3 m): 2.3 m x sqrt(N / 4) and round(5 N / 4) (half to even)."""
-    return FIELD_SIZE * math.sqrt(n_robots / 4), round(5 * n_robots / 4)
+    5 packs in 2.3 m x 2.3 m): 2.3 m x sqrt(N / 4) and 5 N / 4 packs, rounded half up (10
+    robots get 13 packs, 50 get 63)."""
+    return FIELD_SIZE * math.sqrt(n_robots / 4), math.floor(5 * n_robots / 4 + 0.5)
 
 
 def colony_config(

@@ -76,6 +76,7 @@ from benchmarks.colony_scale import paper_density  # noqa: E402
 from benchmarks.publish_runs import finished, publish_run  # noqa: E402
 from cyber_rodent.atomic import atomic_output, write_text  # noqa: E402
 from evolution.lab.comparison import available_window, rank_test  # noqa: E402
+from evolution.config import EvolutionConfig  # noqa: E402
 from evolution.lab.grid import Cell  # noqa: E402
 from evolution.lab.sweep import (  # noqa: E402
     STEPS_PER_LIFE,
@@ -100,6 +101,10 @@ FINAL_WINDOW = (50, 59)
 #: Share of the final level batteries must reach (question 2), and the trailing mean's width.
 REACH_SHARE = 0.9
 REACH_SMOOTHING = 5
+#: Control steps of an agent's life (Table 1), and its setting: a cell of one agent per robot
+#: gives it one slot of that length (:func:`cell_settings`).
+LIFETIME = EvolutionConfig().lifetime_steps
+LIFETIME_KEY = "evolution.lifetime_steps"
 #: The settings each cell sets itself; ``--set`` may not touch them.
 CELL_KEYS = ("evolution.n_robots", "evolution.population_size", "world.field_size",
              "world.n_packs")  # fmt: skip
@@ -123,24 +128,42 @@ def cell_name(n_robots: int) -> str:
     return f"n{n_robots:03d}"
 
 
-def cell_settings(n_robots: int, population: int = POPULATION) -> dict[str, Any]:
+def cell_settings(
+    n_robots: int, population: int = POPULATION, lifetime: int = LIFETIME
+) -> dict[str, Any]:
     """The settings of the cell with ``n_robots`` robots: ``population`` agents,
-    ``population / n_robots`` per robot, at the paper's density (:func:`paper_density`)."""
+    ``population / n_robots`` per robot, at the paper's density (:func:`paper_density`).
+
+    Where each robot carries one agent there is no time sharing: the agent's one slot lasts
+    its whole ``lifetime``. With slots of Table 1's 100 steps the robot would switch back to
+    the same agent every 100 steps, which ends a recharge in progress as a switch to another
+    agent does, an artefact of time sharing the cell exists to leave out.
+    """
     field_size, n_packs = paper_density(n_robots)
-    return {
+    settings: dict[str, Any] = {
         "evolution.n_robots": n_robots,
         "evolution.population_size": population,
         "world.field_size": field_size,
         "world.n_packs": n_packs,
     }
+    if population == n_robots:
+        settings["evolution.time_sharing_steps"] = lifetime
+    return settings
 
 
 def study_cells(
-    sizes: Sequence[int] = SIZES, ce_sizes: Sequence[int] = CE_SIZES, population: int = POPULATION
+    sizes: Sequence[int] = SIZES,
+    ce_sizes: Sequence[int] = CE_SIZES,
+    population: int = POPULATION,
+    lifetime: int = LIFETIME,
 ) -> tuple[Cell, ...]:
     """One cell per size: EE everywhere, CE at ``ce_sizes`` too."""
     return tuple(
-        Cell(cell_name(n), cell_settings(n, population), ("ee", "ce") if n in ce_sizes else ("ee",))
+        Cell(
+            cell_name(n),
+            cell_settings(n, population, lifetime),
+            ("ee", "ce") if n in ce_sizes else ("ee",),
+        )
         for n in sizes
     )
 
@@ -178,7 +201,9 @@ def study_spec(
         seeds=tuple(seeds),
         generations=generations,
         overrides=dict(overrides or {}),
-        cell_list=study_cells(sizes, ce_sizes, population),
+        cell_list=study_cells(
+            sizes, ce_sizes, population, int((overrides or {}).get(LIFETIME_KEY, LIFETIME))
+        ),
         order="seed",
         members=None if members is None else tuple(members),
     )

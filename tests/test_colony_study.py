@@ -28,19 +28,31 @@ TINY_ARGS = ["--sizes", "2,4", "--ce-sizes", "4", "--population", "8", "--seeds"
 # --- the cells and the order of the runs --------------------------------------------------------
 @pytest.mark.parametrize(
     ("n", "field", "packs", "per_robot"),
-    [(4, 2.3, 5, 25), (10, 3.636619, 12, 10), (25, 5.75, 31, 4), (50, 8.131728, 62, 2),
+    [(4, 2.3, 5, 25), (10, 3.636619, 13, 10), (25, 5.75, 31, 4), (50, 8.131728, 63, 2),
      (100, 11.5, 125, 1)],
 )  # fmt: skip
 def test_each_size_is_the_papers_density_with_100_agents(
     n: int, field: float, packs: int, per_robot: int
 ) -> None:
     settings = study.cell_settings(n)
-    # 2.3 m x sqrt(N / 4); 5 N / 4 packs rounded half to even (12.5 -> 12, 62.5 -> 62)
+    # 2.3 m x sqrt(N / 4); 5 N / 4 packs rounded half up (12.5 -> 13, 31.25 -> 31, 62.5 -> 63)
     assert settings["world.field_size"] == pytest.approx(field, abs=1e-6)
     assert settings["world.n_packs"] == packs
     assert settings["evolution.n_robots"] == n
     assert settings["evolution.population_size"] // n == per_robot
     assert settings["evolution.population_size"] == 100
+    # One agent per robot: no time sharing, its one slot is its whole 400-step life (Table 1);
+    # otherwise Table 1's 100-step slots.
+    if per_robot == 1:
+        assert settings["evolution.time_sharing_steps"] == 400
+    else:
+        assert "evolution.time_sharing_steps" not in settings
+
+
+def test_one_agent_per_robot_keeps_a_shortened_life_in_one_slot() -> None:
+    spec = study.study_spec(overrides={"evolution.lifetime_steps": 40})
+    assert spec.settings_of("n100")["evolution.time_sharing_steps"] == 40
+    assert "evolution.time_sharing_steps" not in spec.settings_of("n050")
 
 
 def test_every_cell_validates_and_ce_runs_at_4_and_100_only() -> None:
