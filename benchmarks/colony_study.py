@@ -75,8 +75,8 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 from benchmarks.colony_scale import paper_density  # noqa: E402
 from benchmarks.publish_runs import finished, publish_run  # noqa: E402
 from cyber_rodent.atomic import atomic_output, write_text  # noqa: E402
-from evolution.lab.comparison import available_window, rank_test  # noqa: E402
 from evolution.config import EvolutionConfig  # noqa: E402
+from evolution.lab.comparison import available_window, rank_test  # noqa: E402
 from evolution.lab.grid import Cell  # noqa: E402
 from evolution.lab.sweep import (  # noqa: E402
     STEPS_PER_LIFE,
@@ -410,6 +410,51 @@ def replay_ages(events: pd.DataFrame, config: Mapping[str, Any]) -> np.ndarray:
     return ages
 
 
+def ee_close_quorum(config: Mapping[str, Any]) -> int:
+    """EE: the slots that must have passed a generation for its statistics row to close
+    (``EvolutionConfig.ee_close_quorum`` of all slots, as the scheduler counts them)."""
+    evo = config["evolution"]
+    share = evo.get("ee_close_quorum", EvolutionConfig().ee_close_quorum)
+    n_slots = int(evo["population_size"]) // int(evo["n_robots"]) * int(evo["n_robots"])
+    return max(1, math.ceil(float(share) * n_slots - 1e-9))
+
+
+def ee_closing_robots(
+    lives: pd.DataFrame, span: int, agents_per_robot: int, quorum: int,
+    closed_at: Mapping[int, int],
+) -> dict[int, int]:  # fmt: skip
+    """EE: generation -> the robot whose full life closed its statistics row, at the step
+    ``closed_at`` names (docs/design.md §9.17).
+
+    A slot passes generation g when a full life ends in it, its successor born into g + 1; the
+    row of g closes at the ``quorum``-th such birth, in the order the scheduler ends slots: by
+    step, then robot. ``lives`` is indexed by :func:`life_ids` (``span``: :func:`life_span`),
+    with every life's ``generation``, ``born`` step and whether it ``died``.
+
+    Raises:
+        ValueError: a row closed at another step than the quorum-th such birth.
+    """
+    ids = lives.index.to_numpy()
+    births = ids[ids % span != 0]
+    died = lives["died"].reindex(births - 1).to_numpy(dtype=bool)
+    passed = births[~died]  # born of a full life
+    order = pd.DataFrame({"generation": lives["generation"].reindex(passed).to_numpy(np.int64),
+                          "step": lives["born"].reindex(passed).to_numpy(np.int64),
+                          "robot": passed // (span * agents_per_robot)})  # fmt: skip
+    order = order.sort_values(["step", "robot"], kind="stable")
+    closers: dict[int, int] = {}
+    for generation, step in closed_at.items():
+        past = order[order["generation"] == int(generation) + 1]
+        if len(past) < quorum or int(past["step"].iloc[quorum - 1]) != int(step):
+            at = f"step {int(past['step'].iloc[quorum - 1])}" if len(past) >= quorum else "no step"
+            raise ValueError(
+                f"events do not replay: generation {generation}'s row closed at step {step}, "
+                f"{quorum} slots passed it at {at}"
+            )
+        closers[int(generation)] = int(past["robot"].iloc[quorum - 1])
+    return closers
+
+
 def mating_table(
     events: pd.DataFrame,
     config: Mapping[str, Any],
@@ -424,7 +469,9 @@ def mating_table(
     the same step). A life counts in its generation's row once it ended, and, with
     ``closed_at`` (generation -> the world step its statistics row closed, ``closed_at_step``),
     only if it ended by then and the row closed: the lives the statistics row counts (an EE row
-    closes when 90 % of the slots passed it, docs/design.md §9.17). Columns, per generation g:
+    closes when 90 % of the slots passed it, docs/design.md §9.17, in the middle of its step: a
+    life ending at that step on a robot after the closing one is late,
+    :func:`ee_closing_robots`). Columns, per generation g:
 
     - ``lives`` (that count), ``deaths``, ``full_lives``, ``mated`` (lives with a mating),
       ``matings`` (one per side), ``completed`` (full lives with a mating: the statistics'
@@ -480,8 +527,17 @@ def mating_table(
                             successor_born)  # fmt: skip
     counted = ~np.isnan(lives["end"].to_numpy())
     if closed_at is not None:
+        end = lives["end"].to_numpy()
         close = lives["generation"].map(lambda g: closed_at.get(int(g), -1)).to_numpy(float)
-        counted &= lives["end"].to_numpy() <= close
+        counted &= end <= close
+        if method == "ee":
+            # The robots end their slots in index order within a step, and a row closes at the
+            # full life that brings the quorum of slots past it: a life of its generation that
+            # ends at that step on a later robot is late, outside the row.
+            closers = ee_closing_robots(lives, span, k, ee_close_quorum(config), closed_at)
+            closer = lives["generation"].map(lambda g: closers.get(int(g), -1)).to_numpy()
+            robot = lives.index.to_numpy() // (span * k)
+            counted &= ~((end == close) & (robot > closer))
     origin_of = lives["origin"]  # of every life, counted or not (a CE successor)
     lives = lives[counted].copy()
     lives["full"] = ~lives["died"]

@@ -159,8 +159,9 @@ def test_the_study_publishes_each_run_and_a_rerun_skips_finished_ones(
 
 # --- the mating table from an event log ---------------------------------------------------------
 #: A hand-made EE log: 2 robots x 2 slots, lives of 4 steps in slots of 2 (see the test).
-CONFIG = {"method": "ee", "evolution": {"n_robots": 2, "population_size": 4, "lifetime_steps": 4,
-          "time_sharing_steps": 2, "fitness_time_unit": 100.0}}  # fmt: skip
+CONFIG: dict[str, Any] = {"method": "ee", "evolution": {
+    "n_robots": 2, "population_size": 4, "lifetime_steps": 4, "time_sharing_steps": 2,
+    "fitness_time_unit": 100.0}}  # fmt: skip
 EVENTS = [
     (1, 0, "dock", 0, 0, 3),
     (1, 0, "recharge_end", 0, 0, 1),
@@ -201,14 +202,47 @@ def test_the_mating_table_counts_partners_and_parents_by_hand() -> None:
     assert (row["offspring"], row["parents"], row["parents_effective"]) == (2, 2, 2.0)
     assert list(table.index) == [0]  # generation 1's agents have not ended
 
-    # Counted as the statistics do, generation 0 closing at step 6: robot 0's agents end later.
-    closed = study.mating_table(events_frame(), CONFIG, {0: 6}).set_index("generation").loc[0]
-    assert (closed["lives"], closed["deaths"], closed["completed"]) == (2, 1, 1)
+    # Counted as the statistics do, generation 0 closing when 2 of the 4 slots passed it: robot
+    # 1's slot 0 at step 5, robot 0's slot 1 at step 7; robot 0's slot 0 ends later.
+    config = {**CONFIG, "evolution": {**CONFIG["evolution"], "ee_close_quorum": 0.5}}
+    closed = study.mating_table(events_frame(), config, {0: 7}).set_index("generation").loc[0]
+    assert (closed["lives"], closed["deaths"], closed["completed"]) == (3, 1, 1)
     assert (closed["offspring"], closed["parents"], closed["parents_effective"]) == (1, 2, 2.0)
+    with pytest.raises(ValueError, match="closed at step 6, 2 slots passed it at step 7"):
+        study.mating_table(events_frame(), config, {0: 6})
 
 
+def test_a_row_closes_in_the_middle_of_its_step() -> None:
+    # Two robots with one slot each end a mated life at step 2, robot 0 first: with a quorum of
+    # one slot robot 0's full life closes generation 0, and robot 1's is late.
+    config: dict[str, Any] = {"method": "ee", "evolution": {
+        "n_robots": 2, "population_size": 2, "lifetime_steps": 2, "time_sharing_steps": 2,
+        "fitness_time_unit": 100.0, "ee_close_quorum": 0.5}}  # fmt: skip
+    rows = [(1, 0, "mate", 0, 0, 1), (1, 1, "mate", 0, 0, 0),
+            (2, 0, "birth", 0, 1, int(Origin.OFFSPRING)),
+            (2, 1, "birth", 0, 1, int(Origin.OFFSPRING))]  # fmt: skip
+    row = study.mating_table(events_frame(rows), config, {0: 2}).set_index("generation").loc[0]
+    assert (row["lives"], row["completed"], row["offspring"], row["parents"]) == (1, 1, 1, 2)
+    # with a quorum of both slots robot 1's full life closes it: both count
+    config["evolution"]["ee_close_quorum"] = 1.0
+    row = study.mating_table(events_frame(rows), config, {0: 2}).set_index("generation").loc[0]
+    assert (row["lives"], row["completed"], row["offspring"], row["parents"]) == (2, 2, 2, 2)
+
+
+#: Runs the mating table must agree with: (settings, seed, generations). The first has rows
+#: that close in the middle of a step (a later robot's full life at that step is late); the
+#: second, short-lived agents with little energy, has deaths and another close quorum (9 of 10).
+AGREEING_RUNS = [
+    ({"evolution.n_robots": 3, "evolution.population_size": 12, "evolution.lifetime_steps": 60,
+      "evolution.time_sharing_steps": 15}, 1, 4),
+    ({"evolution.n_robots": 5, "evolution.population_size": 10, "evolution.lifetime_steps": 40,
+      "evolution.time_sharing_steps": 10, "evolution.initial_energy": 38}, 2, 2),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("settings", "seed", "generations"), AGREEING_RUNS)
 def test_the_mating_table_agrees_with_the_scheduler_of_a_run(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, settings: dict[str, Any], seed: int, generations: int
 ) -> None:
     from evolution.lab.api import make_config
     from evolution.runner import EvolutionRunner, default_policies
@@ -224,11 +258,9 @@ def test_the_mating_table_agrees_with_the_scheduler_of_a_run(
         original(self, robot, slot)
 
     monkeypatch.setattr(EmbodiedEvolution, "_on_full_life", on_full_life)
-    config = make_config("ee", **{"evolution.n_robots": 3, "evolution.population_size": 12,
-                                  "evolution.lifetime_steps": 60,
-                                  "evolution.time_sharing_steps": 15})  # fmt: skip
-    with EvolutionRunner(config, 1, default_policies()) as runner:
-        statistics = runner.run(4)
+    config = make_config("ee", **settings)
+    with EvolutionRunner(config, seed, default_policies()) as runner:
+        statistics = runner.run(generations)
         events = runner.events.to_frame()
     record: dict[str, Any] = json.loads(json.dumps(dataclasses.asdict(config), default=repr))
     closed_at = dict(zip(statistics["generation"], statistics["closed_at_step"], strict=True))
@@ -242,7 +274,8 @@ def test_the_mating_table_agrees_with_the_scheduler_of_a_run(
     # the replayed fitness of each completed agent's fittest partner is the scheduler's
     ages = study.replay_ages(events, record)
     kinds = events["kind"].astype(str).to_numpy()
-    life = study.life_ids(events, 4)
+    k = settings["evolution.population_size"] // settings["evolution.n_robots"]
+    life = study.life_ids(events, k)
     docks = pd.Series((kinds == "dock").astype(int)).groupby(life).cumsum().to_numpy()
     fitness_at = {(int(s), int(r)): docks[i] / (ages[i] / 100.0)
                   for i, (s, r) in enumerate(zip(events["step"], events["robot"], strict=True))
