@@ -1,10 +1,11 @@
 """Cost per robot of a control step as the colony grows, at the paper's density.
 
 For N robots (default 4, 10, 25, 50, 100) the world is the paper's scaled up: a square field of
-side 2.3 m x sqrt(N / 4), round(5 N / 4) packs (Python's rounding, half to even: 12 at 10
-robots, 62 at 50), 25 agents per robot, geometric vision, embodied evolution with the shipped
-behaviours. ``--population 100`` keeps the paper's population instead, 100 / N agents per robot:
-the colony study's settings (``benchmarks/colony_study.py``). For each N this prints the cost
+side 2.3 m x sqrt(N / 4), 5 N / 4 packs rounded half up (13 at 10 robots, 63 at 50), 25
+agents per robot, geometric vision, embodied evolution with the shipped behaviours.
+``--population 100`` keeps the paper's population instead, 100 / N agents per robot (and, with
+one agent per robot, one slot of its whole life): the colony study's settings
+(``benchmarks/colony_study.py``). For each N this prints the cost
 per robot per control step of
 
 * **physics**: the control step's bare ``mujoco.mj_step`` calls, replayed from the same
@@ -58,6 +59,12 @@ def colony_config(
     field_size, n_packs = paper_density(n_robots)
     population = AGENTS_PER_ROBOT * n_robots if population_size is None else population_size
     evolution = EvolutionConfig(population_size=population, n_robots=n_robots)
+    if population == n_robots:  # one agent per robot: no time sharing
+        evolution = EvolutionConfig(
+            population_size=population,
+            n_robots=n_robots,
+            time_sharing_steps=evolution.lifetime_steps,
+        )
     world = WorldConfig(field_size=field_size, n_robots=n_robots, n_packs=n_packs)
     return RunConfig(method=method, evolution=evolution, world=world)
 
