@@ -2,23 +2,24 @@
 
 The paper's colony is 4 robots, each time-sharing 25 of the 100 virtual agents. This study keeps
 the population (100), Tables 1 and 2 (the defaults, so every agent lives 400 steps of its
-robot's time, in slots of 100 steps) and the paper's density, and varies the robots:
+robot's time, in slots of 100 steps wherever robots time-share) and the paper's density, and
+varies the robots:
 
 =====  ================  ===============  =====  ================
 N      agents per robot  field side (m)   packs  methods
 =====  ================  ===============  =====  ================
 4      25                2.3              5      EE, CE
-10     10                3.6366           12     EE
+10     10                3.6366           13     EE
 25     4                 5.75             31     EE
-50     2                 8.1317           62     EE
+50     2                 8.1317           63     EE
 100    1                 11.5             125    EE, CE
 =====  ================  ===============  =====  ================
 
-(field 2.3 m x sqrt(N / 4), packs round(5 N / 4) with Python's rounding, half to even, as
-``benchmarks/colony_scale.py``: :func:`cell_settings`). Seeds 0-4, 60 generations each: 35 runs.
-At N = 100 a robot's only agent is "switched" to itself every 100 steps: the slot rules of
-Table 1 stay as they are, so a recharge under way ends at such a switch exactly as it does at
-N = 4 when the agent is switched out.
+(field 2.3 m x sqrt(N / 4), 5 N / 4 packs rounded half up, as ``benchmarks/colony_scale.py``:
+:func:`cell_settings`). Seeds 0-4, 60 generations each: 35 runs. At N = 100 there is no time
+sharing: a robot's only agent has one slot of its whole 400-step life (with Table 1's 100-step
+slots its robot would switch back to it every 100 steps, ending a recharge under way as a
+switch to another agent does at N = 4).
 
     .venv/bin/python -m benchmarks.colony_study --run [--workers 2] [--ray ADDRESS]
     .venv/bin/python -m benchmarks.colony_study          # publish and analyse what finished
