@@ -434,29 +434,30 @@ class GeometricVision:
         ``trace_below``) that could reach its class's area if every sample in view were seen,
         one of whose samples, read in order, is hidden before the samples' estimate (footprint
         × seen share) reaches that area, and one of whose samples is seen: the targets whose
-        samples :meth:`nearest_targets` reads lazily and then traces (``kernels.nearest``)."""
+        samples :meth:`nearest_targets` reads lazily and then traces (``kernels.nearest``).
+
+        Only the few (robot, target) pairs that are small and have a sample seen and one hidden
+        are read sample by sample."""
         tt = self.targets
-        step, need = tt.inv_samples, tt.min_area
-        shape = full_area.shape
-        seen = np.zeros(shape)
-        read = np.zeros(shape)
-        first_miss = np.full(shape, np.inf)
-        certain_at = np.full(shape, np.inf)
-        last = len(tt.sample_target) - 1
-        for k in range(int((tt.sample_end - tt.sample_start).max(initial=0))):
-            s = tt.sample_start + k
-            exists = s < tt.sample_end
-            s = np.minimum(s, last)
-            ok = sample_ok[:, s] & exists
-            shown = hit[:, s] & ok
-            read += ok
-            seen += shown
-            first_miss = np.where(ok & ~shown & np.isinf(first_miss), read, first_miss)
-            certain = shown & (full_area * (seen * step) >= need)
-            certain_at = np.where(certain & np.isinf(certain_at), read, certain_at)
-        reachable = full_area * (read * step) >= need
-        small = (full_area < tt.trace_below) & reachable & (seen > 0)
-        traced: np.ndarray = small & (first_miss < certain_at)
+        traced = np.zeros(full_area.shape, dtype=bool)
+        small = full_area < tt.trace_below
+        if not small.any():
+            return traced
+        read = np.add.reduceat(sample_ok, tt.sample_start, axis=1, dtype=np.int64)
+        seen = np.add.reduceat(hit & sample_ok, tt.sample_start, axis=1, dtype=np.int64)
+        reachable = full_area * (read * tt.inv_samples) >= tt.min_area
+        for i, t in zip(*np.nonzero(small & reachable & (seen > 0) & (seen < read)), strict=True):
+            full, need, step = full_area[i, t], tt.min_area[t], tt.inv_samples[t]
+            shown = 0
+            for s in range(int(tt.sample_start[t]), int(tt.sample_end[t])):
+                if not sample_ok[i, s]:
+                    continue
+                if not hit[i, s]:
+                    traced[i, t] = True  # hidden before the estimate was certain
+                    break
+                shown += 1
+                if full * (shown * step) >= need:
+                    break  # certain before any hidden sample was read
         return traced
 
     def nearest_targets(self) -> kernels.NearestTargets:
