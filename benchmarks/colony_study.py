@@ -789,14 +789,18 @@ TREND_QUESTIONS = {"batteries": 1, "matings": 1, "reach_generation": 2, "reach_r
 TRENDS = tuple(TREND_QUESTIONS)
 
 
-def test_table(per_run: pd.DataFrame) -> pd.DataFrame:
+def test_table(
+    per_run: pd.DataFrame, compared: tuple[int, int] = (min(CE_SIZES), max(CE_SIZES))
+) -> pd.DataFrame:
     """Two-sided Mann-Whitney U of each pair in :data:`TESTS` over per-run values (exact
     without ties, :func:`evolution.lab.comparison.rank_test`), and Spearman's trend over N of
-    each EE quantity in :data:`TRENDS`."""
+    each EE quantity in :data:`TRENDS`.
+
+    ``compared``: the small and the large colony of the tests (the study's CE sizes), whether
+    or not their runs are published yet: a size with no run gives n = 0 and no p-value, never a
+    test of another size."""
     rows = []
-    ce_sizes = sorted(set(per_run.loc[per_run["method"] == "ce", "n_robots"]))
-    sizes = ce_sizes or sorted(set(per_run["n_robots"]))
-    size = {"small": int(sizes[0]), "large": int(sizes[-1])}
+    size = {"small": int(compared[0]), "large": int(compared[1])}
 
     def values(method: str, n: int, quantity: str) -> np.ndarray:
         chosen = per_run[(per_run["method"] == method) & (per_run["n_robots"] == n)]

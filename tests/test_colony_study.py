@@ -365,3 +365,17 @@ def test_the_analysis_of_published_runs_by_hand(
     assert mann_whitney.loc[("batteries", "CE N=4"), "n_a"] == 1
     printed = capsys.readouterr().out
     assert "| 4 | 25 | CE | 1 |" in printed and "| 100 | 1 | EE | 3 |" in printed
+
+
+def test_the_tests_compare_the_study_sizes_even_before_their_runs_exist() -> None:
+    """With N = 100 not published yet, N = 4 is never tested against itself or another N."""
+    per_run = pd.DataFrame({
+        "method": ["ee", "ee", "ee", "ce"], "n_robots": [4, 4, 10, 4], "seed": [0, 1, 0, 0],
+        **{q: [1.0, 2.0, 3.0, 4.0] for q in ("batteries", "matings", "completed", "deaths",
+            "reach_generation", "reach_robot_hours", "partners_per_mated_life", "parents",
+            "parents_effective")},
+    })  # fmt: skip
+    tests = study.test_table(per_run)
+    pairs = tests[tests["test"].str.startswith("mann-whitney")]
+    assert set(pairs["b"]) <= {"EE N=100", "CE N=100", "CE N=4"}
+    assert (pairs.loc[pairs["b"].str.endswith("N=100"), "n_b"] == 0).all()
