@@ -856,7 +856,8 @@ def plot_study(runs: Sequence[PublishedRun], path: Path) -> Path:
                 curve = pd.concat(
                     [r.statistics.set_index("generation")[quantity] for r in chosen], axis=1
                 ).mean(axis=1)
-                label = f"N = {n}, {chosen[0].agents_per_robot} per robot ({len(chosen)} runs)"
+                runs_label = "1 run" if len(chosen) == 1 else f"{len(chosen)} runs"
+                label = f"N = {n}, {chosen[0].agents_per_robot} per robot ({runs_label})"
                 axes[row][column].plot(
                     curve.index, curve.to_numpy(), color=colour, lw=1.5, label=label
                 )
