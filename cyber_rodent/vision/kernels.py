@@ -107,7 +107,8 @@ class TargetTable(NamedTuple):
     edge_slope: Floats
     min_area: Floats  #: (T,) px, the class's smallest detectable blob
     #: (T,) px, a target whose full footprint covers fewer pixels is measured pixel by pixel
-    #: once a sample sees it (:func:`traced_area`); 0: never
+    #: if one of its samples is hidden before their estimate is certain and one is seen
+    #: (:func:`traced_area`); 0: never
     trace_below: Floats
     sample_target: Ints  #: (S,) target of each sample
     sample_lateral: Floats  #: (S,) m, offset along the target's width axis
@@ -1019,7 +1020,7 @@ def _traced_reference(
 def traced_area(scene: GeometricScene, robots: Ints, target_ids: Ints, out: Floats) -> None:
     """``out[k]``: the pixels of target ``target_ids[k]`` that robot ``robots[k]`` sees, each
     pixel's ray cast (:func:`_traced`); :func:`front` must have placed them. The full pass
-    measures with it the small targets that some sample sees."""
+    measures with it the small targets that :func:`nearest` traces."""
     for k in range(robots.shape[0]):
         out[k] = _traced(scene, robots[k], target_ids[k], 0.0, False, False)
 
