@@ -122,10 +122,11 @@ class CameraConfig:
             while a whole pack anywhere in the field covers at least ~5 pixels by default.
         trace_below: pixels, per class (LED, FACE, BATTERY): the geometric provider measures
             a target whose whole footprint covers fewer pixels than this pixel by pixel (a ray
-            through each covered pixel centre) once one of its occlusion samples is seen, so a
-            small target that a nearer body partly hides is seen exactly when enough of its
-            pixels show; larger targets keep the samples' estimate (footprint × visible share
-            of samples). 0 turns it off for the class (the model before it). docs/design.md §6.
+            through each covered pixel centre) when, reading its occlusion samples in order,
+            one is hidden before their estimate is certain and one is seen, so a small target
+            that a nearer body partly hides is seen when enough of its pixels show; other
+            targets keep the samples' estimate (footprint × visible share of samples). 0 turns
+            it off for the class (the model before it). docs/design.md §6.
         led, face, battery: HSV thresholds of the three colour classes.
         noise: optional measurement noise (off by default).
         near_clip: m, OpenGL near plane of the views (must be inside the robot's own body).
