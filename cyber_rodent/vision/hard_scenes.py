@@ -152,7 +152,7 @@ def make_scenes(world: World, family: Family, count: int, seed: int) -> list[Sce
 
 
 # --- building blocks ---------------------------------------------------------------------------
-def _ahead(
+def ahead(
     x: float, y: float, direction: float, distance: float, lateral: float = 0.0
 ) -> tuple[float, float]:
     """The point ``distance`` along ``direction`` from (x, y), shifted ``lateral`` to its left."""
@@ -160,16 +160,16 @@ def _ahead(
     return float(x + distance * c - lateral * s), float(y + distance * s + lateral * c)
 
 
-def _inside(rng: np.random.Generator, margin: float) -> tuple[float, float]:
+def inside(rng: np.random.Generator, margin: float) -> tuple[float, float]:
     lim = _HALF - margin
     return float(rng.uniform(-lim, lim)), float(rng.uniform(-lim, lim))
 
 
-def _yaw(rng: np.random.Generator) -> float:
+def random_yaw(rng: np.random.Generator) -> float:
     return float(rng.uniform(-math.pi, math.pi))
 
 
-def _leds(rng: np.random.Generator, n: int, p: float = 0.8) -> tuple[bool, ...]:
+def random_leds(rng: np.random.Generator, n: int, p: float = 0.8) -> tuple[bool, ...]:
     return tuple(bool(v) for v in rng.random(n) < p)
 
 
@@ -182,90 +182,90 @@ def _row(rng: np.random.Generator) -> Scene:
     """An observer and three robots in a row ahead of it; the middle ones hide the far ones,
     with a small sideways jitter so that slivers of the hidden ones show."""
     n = 4
-    x0, y0 = _inside(rng, 0.25)
-    direction = _towards(x0, y0, *_inside(rng, 0.6)) + rng.uniform(-0.3, 0.3)
+    x0, y0 = inside(rng, 0.25)
+    direction = _towards(x0, y0, *inside(rng, 0.6)) + rng.uniform(-0.3, 0.3)
     first = rng.uniform(0.3, 0.6)
     spacing = rng.uniform(0.2, 0.4)
     robots = [(x0, y0, direction + rng.uniform(-math.pi, math.pi))]
     for k in range(3):
-        x, y = _ahead(x0, y0, direction, first + k * spacing, rng.uniform(-0.07, 0.07))
-        robots.append((x, y, _yaw(rng)))
-    packs = [_inside(rng, 0.1)]
+        x, y = ahead(x0, y0, direction, first + k * spacing, rng.uniform(-0.07, 0.07))
+        robots.append((x, y, random_yaw(rng)))
+    packs = [inside(rng, 0.1)]
     designed = [(0, t) for j in (2, 3) for t in (led(j), face(j, n))]
-    return Scene(tuple(robots), tuple(packs), _leds(rng, n), tuple(designed))
+    return Scene(tuple(robots), tuple(packs), random_leds(rng, n), tuple(designed))
 
 
 def _behind(rng: np.random.Generator) -> Scene:
     """A pack just behind a robot, and a robot just behind a pack, both seen by the observer
     over or past the nearer one."""
     n = 3
-    x0, y0 = _inside(rng, 0.25)
-    robots = [(x0, y0, _yaw(rng))]
+    x0, y0 = inside(rng, 0.25)
+    robots = [(x0, y0, random_yaw(rng))]
     packs = []
     base = _towards(x0, y0, 0.0, 0.0)
     # A robot, then a pack behind it.
     d1 = rng.uniform(0.3, 0.8)
     a1 = base + rng.uniform(-0.8, 0.8)
-    rx, ry = _ahead(x0, y0, a1, d1)
-    robots.append((rx, ry, _yaw(rng)))
-    packs.append(_ahead(x0, y0, a1, d1 + rng.uniform(0.14, 0.35), rng.uniform(-0.1, 0.1)))
+    rx, ry = ahead(x0, y0, a1, d1)
+    robots.append((rx, ry, random_yaw(rng)))
+    packs.append(ahead(x0, y0, a1, d1 + rng.uniform(0.14, 0.35), rng.uniform(-0.1, 0.1)))
     # A pack, then a robot behind it.
     a2 = a1 + rng.choice([-1, 1]) * rng.uniform(0.5, 1.2)
     d2 = rng.uniform(0.25, 0.7)
-    packs.append(_ahead(x0, y0, a2, d2))
-    px, py = _ahead(x0, y0, a2, d2 + rng.uniform(0.2, 0.4), rng.uniform(-0.08, 0.08))
-    robots.append((px, py, _yaw(rng)))
-    packs.append(_inside(rng, 0.1))
+    packs.append(ahead(x0, y0, a2, d2))
+    px, py = ahead(x0, y0, a2, d2 + rng.uniform(0.2, 0.4), rng.uniform(-0.08, 0.08))
+    robots.append((px, py, random_yaw(rng)))
+    packs.append(inside(rng, 0.1))
     designed = [(0, pack(0, n)), (0, led(2)), (0, face(2, n)), (0, pack(1, n))]
-    return Scene(tuple(robots), tuple(packs), _leds(rng, n), tuple(designed))
+    return Scene(tuple(robots), tuple(packs), random_leds(rng, n), tuple(designed))
 
 
 def _touching(rng: np.random.Generator) -> Scene:
     """Three robots gathered on one pack (teeth or sides touching it, and each other), and an
     observer that touches a pack of its own with its front or side while it looks at them."""
     n = 4
-    cx, cy = _inside(rng, 0.35)
+    cx, cy = inside(rng, 0.35)
     packs = [(cx, cy)]
     robots: list[tuple[float, float, float]] = []
-    start = _yaw(rng)
+    start = random_yaw(rng)
     for k in range(3):
         around = start + k * rng.uniform(1.6, 2.3)
         docked = rng.random() < 0.7
         reach = TEETH_TO_PACK if docked else SIDE_TO_PACK
-        x, y = _ahead(cx, cy, around, reach + rng.uniform(0.0, 0.004))
+        x, y = ahead(cx, cy, around, reach + rng.uniform(0.0, 0.004))
         facing = around + math.pi if docked else around + rng.choice([-1, 1]) * math.pi / 2
         robots.append((x, y, facing + rng.uniform(-0.15, 0.15)))
     # The observer, 0.3-1.0 m from the cluster, with a pack touching its front or side.
     d = rng.uniform(0.35, 1.0)
-    ox, oy = _ahead(cx, cy, _yaw(rng), d)
+    ox, oy = ahead(cx, cy, random_yaw(rng), d)
     look = _towards(ox, oy, cx, cy) + rng.uniform(-1.0, 1.0)
     side = rng.choice([0.0, math.pi / 2, -math.pi / 2, rng.uniform(-0.6, 0.6)])
     reach = TEETH_TO_PACK if abs(side) < 0.7 else SIDE_TO_PACK
-    packs.append(_ahead(ox, oy, look + side, reach + rng.uniform(0.0, 0.004)))
+    packs.append(ahead(ox, oy, look + side, reach + rng.uniform(0.0, 0.004)))
     robots.insert(0, (ox, oy, look))
     designed = [(0, pack(0, n)), (0, pack(1, n))]
     designed += [(0, t) for j in (1, 2, 3) for t in (led(j), face(j, n))]
-    return Scene(tuple(robots), tuple(packs), _leds(rng, n), tuple(designed))
+    return Scene(tuple(robots), tuple(packs), random_leds(rng, n), tuple(designed))
 
 
 def _seams(rng: np.random.Generator) -> Scene:
     """Targets whose axis lies within a few degrees of a seam between two of the 4 views."""
     n = 3
-    x0, y0 = _inside(rng, 0.4)
-    yaw = _yaw(rng)
+    x0, y0 = inside(rng, 0.4)
+    yaw = random_yaw(rng)
     robots = [(x0, y0, yaw)]
     packs = []
     seams = rng.permutation([math.pi / 4, 3 * math.pi / 4, -math.pi / 4, -3 * math.pi / 4])
     for k, seam in enumerate(seams[:4]):
         bearing = yaw + seam + math.radians(rng.uniform(-4.0, 4.0))
         if k < 2:
-            x, y = _ahead(x0, y0, bearing, rng.uniform(0.3, 1.5))
-            robots.append((x, y, _yaw(rng)))
+            x, y = ahead(x0, y0, bearing, rng.uniform(0.3, 1.5))
+            robots.append((x, y, random_yaw(rng)))
         else:
-            packs.append(_ahead(x0, y0, bearing, rng.uniform(0.17, 1.5)))
+            packs.append(ahead(x0, y0, bearing, rng.uniform(0.17, 1.5)))
     designed = [(0, led(1)), (0, face(1, n)), (0, led(2)), (0, face(2, n))]
     designed += [(0, pack(0, n)), (0, pack(1, n))]
-    return Scene(tuple(robots), tuple(packs), _leds(rng, n, 1.0), tuple(designed))
+    return Scene(tuple(robots), tuple(packs), random_leds(rng, n, 1.0), tuple(designed))
 
 
 def _far(rng: np.random.Generator) -> Scene:
@@ -275,38 +275,38 @@ def _far(rng: np.random.Generator) -> Scene:
     lim = _HALF - 0.16
     corner = rng.choice([-1.0, 1.0], size=2)
     x0, y0 = corner * (lim - rng.uniform(0.0, 0.1, size=2))
-    robots = [(float(x0), float(y0), _yaw(rng))]
+    robots = [(float(x0), float(y0), random_yaw(rng))]
     packs = []
     for k in range(5):
         d = rng.uniform(1.4, 3.0)
         a = _towards(x0, y0, 0.0, 0.0) + rng.uniform(-0.5, 0.5)
-        x, y = _ahead(float(x0), float(y0), a, d)
+        x, y = ahead(float(x0), float(y0), a, d)
         if k < 2:
-            robots.append((x, y, _yaw(rng)))
+            robots.append((x, y, random_yaw(rng)))
         else:
             packs.append((x, y))
     designed = [(0, t) for j in (1, 2) for t in (led(j), face(j, n))]
     designed += [(0, pack(k, n)) for k in range(3)]
-    return Scene(tuple(robots), tuple(packs), _leds(rng, n, 1.0), tuple(designed))
+    return Scene(tuple(robots), tuple(packs), random_leds(rng, n, 1.0), tuple(designed))
 
 
 def _pack_cluster(rng: np.random.Generator) -> Scene:
     """Packs touching or nearly touching one another, seen from 0.2-1.5 m: in the image a
     farther pack stands above, beside or behind a nearer one."""
     n = 2
-    cx, cy = _inside(rng, 0.4)
+    cx, cy = inside(rng, 0.4)
     packs = [(cx, cy)]
     while len(packs) < 5:
         ax, ay = packs[int(rng.integers(len(packs)))]
         gap = rng.uniform(0.0, 0.1)
-        x, y = _ahead(ax, ay, _yaw(rng), 2 * C.PACK_RADIUS + gap)
+        x, y = ahead(ax, ay, random_yaw(rng), 2 * C.PACK_RADIUS + gap)
         if all(math.hypot(x - px, y - py) >= 2 * C.PACK_RADIUS for px, py in packs):
             packs.append((x, y))
     d = rng.uniform(0.3, 1.5)
-    ox, oy = _ahead(cx, cy, _yaw(rng), d)
-    robots = [(ox, oy, _yaw(rng)), _inside(rng, 0.2) + (_yaw(rng),)]
+    ox, oy = ahead(cx, cy, random_yaw(rng), d)
+    robots = [(ox, oy, random_yaw(rng)), inside(rng, 0.2) + (random_yaw(rng),)]
     designed = [(0, pack(k, n)) for k in range(5)]
-    return Scene(tuple(robots), tuple(packs), _leds(rng, n), tuple(designed))
+    return Scene(tuple(robots), tuple(packs), random_leds(rng, n), tuple(designed))
 
 
 def _face_to_face(rng: np.random.Generator) -> Scene:
@@ -314,21 +314,21 @@ def _face_to_face(rng: np.random.Generator) -> Scene:
     ±15°), near each other: each robot's partner face is the one the Mate behaviour reads."""
     n = 4
     robots: list[tuple[float, float, float]] = []
-    cx, cy = _inside(rng, 0.4)
-    heading = _yaw(rng)
+    cx, cy = inside(rng, 0.4)
+    heading = random_yaw(rng)
     for pair in range(2):
         if pair == 1:
-            cx, cy = _ahead(cx, cy, _yaw(rng), rng.uniform(0.45, 0.9))
-            heading = _yaw(rng)
+            cx, cy = ahead(cx, cy, random_yaw(rng), rng.uniform(0.45, 0.9))
+            heading = random_yaw(rng)
         gap = 0.222 + rng.uniform(0.05, 0.35)  # centre to centre: 2 × 0.111 to the ports
-        ax, ay = _ahead(cx, cy, heading, -gap / 2)
-        bx, by = _ahead(cx, cy, heading, gap / 2)
+        ax, ay = ahead(cx, cy, heading, -gap / 2)
+        bx, by = ahead(cx, cy, heading, gap / 2)
         robots.append((ax, ay, heading + math.radians(rng.uniform(-15, 15))))
         robots.append((bx, by, heading + math.pi + math.radians(rng.uniform(-15, 15))))
-    packs = [_inside(rng, 0.1), _inside(rng, 0.1)]
+    packs = [inside(rng, 0.1), inside(rng, 0.1)]
     designed = [(0, face(1, n)), (1, face(0, n)), (2, face(3, n)), (3, face(2, n))]
     designed += [(0, led(1)), (1, led(0)), (2, led(3)), (3, led(2))]
-    return Scene(tuple(robots), tuple(packs), _leds(rng, n), tuple(designed))
+    return Scene(tuple(robots), tuple(packs), random_leds(rng, n), tuple(designed))
 
 
 #: Every family, in report order.

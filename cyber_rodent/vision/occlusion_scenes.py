@@ -33,7 +33,18 @@ import math
 import numpy as np
 
 from cyber_rodent import constants as C
-from cyber_rodent.vision.hard_scenes import Family, Scene, face, led, pack, valid
+from cyber_rodent.vision.hard_scenes import (
+    Family,
+    Scene,
+    ahead,
+    face,
+    inside,
+    led,
+    pack,
+    random_leds,
+    random_yaw,
+    valid,
+)
 from cyber_rodent.world import World
 
 #: m, robot centres stay this far inside the walls when a row is laid out.
@@ -92,32 +103,11 @@ def make_scenes(world: World, family: Family, scene_seeds: list[int]) -> list[Sc
 
 
 # --- building blocks ---------------------------------------------------------------------------
-def _point(
-    x: float, y: float, direction: float, along: float, lateral: float = 0.0
-) -> tuple[float, float]:
-    """The point ``along`` m in ``direction`` from (x, y), shifted ``lateral`` m to its left."""
-    c, s = math.cos(direction), math.sin(direction)
-    return float(x + along * c - lateral * s), float(y + along * s + lateral * c)
-
-
-def _anywhere(rng: np.random.Generator, margin: float) -> tuple[float, float]:
-    lim = _HALF - margin
-    return float(rng.uniform(-lim, lim)), float(rng.uniform(-lim, lim))
-
-
-def _yaw(rng: np.random.Generator) -> float:
-    return float(rng.uniform(-math.pi, math.pi))
-
-
 def _facing(rng: np.random.Generator, x: float, y: float, ox: float, oy: float) -> float:
     """A heading that turns the robot at (x, y) towards (ox, oy) within ±90° (p = 0.6), or any."""
     if rng.random() < 0.6:
         return math.atan2(oy - y, ox - x) + float(rng.uniform(-0.5 * math.pi, 0.5 * math.pi))
-    return _yaw(rng)
-
-
-def _leds(rng: np.random.Generator, n: int, p: float = 0.8) -> tuple[bool, ...]:
-    return tuple(bool(v) for v in rng.random(n) < p)
+    return random_yaw(rng)
 
 
 def _fit(
@@ -141,57 +131,61 @@ def _rows(rng: np.random.Generator) -> Scene:
     along = np.concatenate([[0.0], np.cumsum(rng.uniform(0.25, 1.0, size=length - 1))])
     lateral = np.concatenate([[0.0], rng.uniform(-ROW_LATERAL, ROW_LATERAL, size=length - 1)])
     for _try in range(100):  # a direction in which the row fits the field
-        direction = _yaw(rng)
+        direction = random_yaw(rng)
         offsets = np.array(
-            [_point(0.0, 0.0, direction, a, b) for a, b in zip(along, lateral, strict=True)]
+            [ahead(0.0, 0.0, direction, a, b) for a, b in zip(along, lateral, strict=True)]
         )
         start = _fit(rng, offsets, _ROBOT_MARGIN)
         if start is not None:
             break
     # A row too long for the field in every direction tried: outside the walls, drawn again.
     x0, y0 = start if start is not None else (2 * _HALF, 2 * _HALF)
-    robots = [(x0, y0, _yaw(rng))]
+    robots = [(x0, y0, random_yaw(rng))]
     for dx, dy in offsets[1:]:
         x, y = x0 + float(dx), y0 + float(dy)
         robots.append((x, y, _facing(rng, x, y, x0, y0)))
     while len(robots) < n:
-        robots.append((*_anywhere(rng, _ROBOT_MARGIN), _yaw(rng)))
-    packs = [_anywhere(rng, 0.1)]
+        robots.append((*inside(rng, _ROBOT_MARGIN), random_yaw(rng)))
+    packs = [inside(rng, 0.1)]
     designed = [(0, t) for j in range(2, length) for t in (led(j), face(j, n))]
-    return Scene(tuple(robots), tuple(packs), _leds(rng, n), tuple(designed))
+    return Scene(tuple(robots), tuple(packs), random_leds(rng, n), tuple(designed))
 
 
 def _pack_behind(rng: np.random.Generator) -> Scene:
     """Two robots 0.3-2 m from the observer, a pack behind each (see the module docstring)."""
     n = 3
-    x0, y0 = _anywhere(rng, _ROBOT_MARGIN)
-    robots = [(x0, y0, _yaw(rng))]
+    x0, y0 = inside(rng, _ROBOT_MARGIN)
+    robots = [(x0, y0, random_yaw(rng))]
     packs = []
-    first = _yaw(rng)
+    first = random_yaw(rng)
     for k in range(2):
         direction = first + (k * rng.choice([-1.0, 1.0]) * rng.uniform(0.4, math.pi))
         d = rng.uniform(0.3, 2.0)
-        x, y = _point(x0, y0, direction, d)
-        robots.append((x, y, _yaw(rng)))
+        x, y = ahead(x0, y0, direction, d)
+        robots.append((x, y, random_yaw(rng)))
         lateral = rng.uniform(-PACK_LATERAL, PACK_LATERAL)
-        packs.append(_point(x0, y0, direction, d + rng.uniform(0.12, 0.45), lateral))
-    packs.append(_anywhere(rng, 0.1))
+        packs.append(ahead(x0, y0, direction, d + rng.uniform(0.12, 0.45), lateral))
+    packs.append(inside(rng, 0.1))
     designed = [(0, pack(0, n)), (0, pack(1, n))]
-    return Scene(tuple(robots), tuple(packs), _leds(rng, n), tuple(designed))
+    return Scene(tuple(robots), tuple(packs), random_leds(rng, n), tuple(designed))
 
 
 def _behind_robot(rng: np.random.Generator) -> Scene:
     """A far robot 0.5-2 m away behind a middle robot (see the module docstring)."""
     n = 3
-    x0, y0 = _anywhere(rng, _ROBOT_MARGIN)
-    direction = _yaw(rng)
+    x0, y0 = inside(rng, _ROBOT_MARGIN)
+    direction = random_yaw(rng)
     far = rng.uniform(0.5, 2.0)
     middle = rng.uniform(0.25, far - 0.25)
-    mx, my = _point(x0, y0, direction, middle, rng.uniform(-MIDDLE_LATERAL, MIDDLE_LATERAL))
-    fx, fy = _point(x0, y0, direction, far)
-    robots = [(x0, y0, _yaw(rng)), (mx, my, _yaw(rng)), (fx, fy, _facing(rng, fx, fy, x0, y0))]
-    packs = [_anywhere(rng, 0.1), _anywhere(rng, 0.1)]
-    leds = _leds(rng, n)[:2] + (bool(rng.random() < 0.9),)
+    mx, my = ahead(x0, y0, direction, middle, rng.uniform(-MIDDLE_LATERAL, MIDDLE_LATERAL))
+    fx, fy = ahead(x0, y0, direction, far)
+    robots = [
+        (x0, y0, random_yaw(rng)),
+        (mx, my, random_yaw(rng)),
+        (fx, fy, _facing(rng, fx, fy, x0, y0)),
+    ]
+    packs = [inside(rng, 0.1), inside(rng, 0.1)]
+    leds = random_leds(rng, n)[:2] + (bool(rng.random() < 0.9),)
     designed = [(0, led(2)), (0, face(2, n))]
     return Scene(tuple(robots), tuple(packs), leds, tuple(designed))
 
