@@ -877,6 +877,23 @@ def first_hit(
     return int(hit[0])
 
 
+@jit_inline
+def _cast(
+    poses: MujocoPoses, grids: SceneIndex, groups: npt.NDArray[np.uint8], exclude: int,
+    p: Floats, v: Floats, pnt: np.int64, vec: np.int64, hit: npt.NDArray[np.int32], cull: bool,
+) -> int:  # fmt: skip
+    """The geom ``mj_ray`` hits first on the ray p + x v (``pnt``, ``vec``: their addresses),
+    ignoring body ``exclude``: :func:`first_hit`'s answer where ``cull`` (the grids binned),
+    else ``mj_ray``'s own; the same geom. Also written to ``hit[0]``."""
+    if cull:
+        return first_hit(poses, grids, groups, exclude, p, v, pnt, vec, hit)
+    _MJ_RAY(
+        poses.model_address, poses.data_address, pnt, vec, np.int64(groups.ctypes.data),
+        np.uint8(1), np.int32(exclude), np.int64(hit.ctypes.data), np.int64(0),
+    )  # fmt: skip
+    return int(hit[0])
+
+
 # --- the pixels of a small target ----------------------------------------------------------------
 #: m, how far past a target's far side a pixel's ray reaches (its length only bounds the geoms
 #: :func:`first_hit` tests; the geom hit is ``mj_ray``'s at any length).
@@ -953,8 +970,6 @@ def _traced(
     row_size = np.int64(_ROW)
     pnt = np.int64(f.cam.ctypes.data) + i * row_size
     vec = np.int64(f.pixel_ray.ctypes.data)
-    groups_ptr = np.int64(targets.geom_groups.ctypes.data)
-    geom_ptr = np.int64(f.ray_geom.ctypes.data)
     shown, tried = 0, 0
     for a in range(n_r):
         r = mid_r + _centre_out_compiled(a)
@@ -965,17 +980,10 @@ def _traced(
             if c < c0 or c > c1:
                 continue
             _pixel_vector_compiled(camera, rot, c, r, reach, f.pixel_ray)
-            if cull:
-                hit = first_hit(
-                    poses, scene.grids, targets.geom_groups, exclude, f.cam[i], f.pixel_ray,
-                    pnt, vec, f.ray_geom,
-                )  # fmt: skip
-            else:
-                _MJ_RAY(
-                    poses.model_address, poses.data_address, pnt, vec, groups_ptr,
-                    np.uint8(1), np.int32(exclude), geom_ptr, np.int64(0),
-                )  # fmt: skip
-                hit = f.ray_geom[0]
+            hit = _cast(
+                poses, scene.grids, targets.geom_groups, exclude, f.cam[i], f.pixel_ray, pnt,
+                vec, f.ray_geom, cull,
+            )  # fmt: skip
             tried += 1
             if hit == goal:
                 shown += 1
@@ -1073,8 +1081,6 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
     # mj_ray reads 3 doubles at each point/direction address. Addresses are signed 64-bit:
     # numba would turn uintp + int64 into a float.
     cam_ptr, rays_ptr = np.int64(f.cam.ctypes.data), np.int64(f.rays.ctypes.data)
-    groups_ptr = np.int64(targets.geom_groups.ctypes.data)
-    geom_ptr = np.int64(f.ray_geom.ctypes.data)
     row_size = np.int64(_ROW)
     cull = grids.rays.cull
     grid = grids.targets
@@ -1168,17 +1174,10 @@ def nearest(scene: GeometricScene, out: NearestTargets) -> None:
                         first = s + 1
                         left -= 1
                         pnt, vec = cam_ptr + i * row_size, rays_ptr + (i * n_s + s) * row_size
-                        if cull:
-                            hit = first_hit(
-                                poses, grids, targets.geom_groups, exclude, f.cam[i],
-                                f.rays[i, s], pnt, vec, f.ray_geom,
-                            )  # fmt: skip
-                        else:
-                            _MJ_RAY(
-                                poses.model_address, poses.data_address, pnt, vec, groups_ptr,
-                                np.uint8(1), np.int32(exclude), geom_ptr, np.int64(0),
-                            )  # fmt: skip
-                            hit = f.ray_geom[0]
+                        hit = _cast(
+                            poses, grids, targets.geom_groups, exclude, f.cam[i],
+                            f.rays[i, s], pnt, vec, f.ray_geom, cull,
+                        )  # fmt: skip
                         if hit == targets.sample_geom[s]:
                             hits += 1
                             seen = traced or full * (hits * step) >= need
