@@ -76,6 +76,34 @@ def test_resume_continues_bit_identically_and_never_overwrites(tmp_path) -> None
     ).read_bytes()
 
 
+def test_resume_keeps_a_finished_run_and_records_the_commits_that_advanced_it(
+    tmp_path, monkeypatch
+) -> None:
+    from evolution.lab import api, run
+
+    monkeypatch.setattr(api, "source_commit", lambda: "old")
+    run("ee", 1, 5, out_dir=tmp_path, policies=REACTIVE, **SMALL)
+    finished = _snapshot(tmp_path)
+    monkeypatch.setattr(api, "source_commit", lambda: "new")
+    # Resuming a finished run under other code changes no file: its record keeps "old".
+    table = run("ee", 1, 5, out_dir=tmp_path, policies=REACTIVE, resume=True, **SMALL)
+    assert _snapshot(tmp_path) == finished
+    pd.testing.assert_frame_equal(table, pd.read_csv(tmp_path / "statistics.csv"))
+    # Advancing it under "new" records "new", and "old" as the commit before it.
+    run("ee", 2, 5, out_dir=tmp_path, policies=REACTIVE, resume=True, **SMALL)
+    versions = json.loads((tmp_path / "run.json").read_text())["versions"]
+    assert (versions["git_commit"], versions["earlier_commits"]) == ("new", ["old"])
+    # A record cut short (the process died before its last write) is written again.
+    record = json.loads((tmp_path / "run.json").read_text())
+    record["summary"]["completed_generations"] = 1
+    (tmp_path / "run.json").write_text(json.dumps(record))
+    monkeypatch.setattr(api, "source_commit", lambda: "third")
+    run("ee", 2, 5, out_dir=tmp_path, policies=REACTIVE, resume=True, **SMALL)
+    record = json.loads((tmp_path / "run.json").read_text())
+    assert record["summary"]["completed_generations"] == 2
+    assert record["versions"]["earlier_commits"] == ["old", "new"]
+
+
 def test_resume_with_another_config_or_a_corrupt_checkpoint_loses_nothing(tmp_path) -> None:
     from evolution.lab import run
 

@@ -35,7 +35,7 @@ import functools
 import json
 import os
 import subprocess
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -213,11 +213,17 @@ def run(
             )
         runner = EvolutionRunner(run_config, seed, policies)
     with runner:
+        previous = read_record(out / RUN_FILE) if resume else None
+        if previous is not None and is_final_record(previous, runner, generations, max_steps):
+            # Finished and fully written: every file stays as it is, the record included, so
+            # it keeps the commit that made the run.
+            return runner.statistics()
+        earlier = earlier_commits(previous)
         out.mkdir(parents=True, exist_ok=True)
         if versions is not None:
             text = json.dumps(versions, indent=2, sort_keys=True, default=repr) + "\n"
             write_text(out / VERSIONS_FILE, text)
-        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps))
+        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps, earlier))
         with monitoring(board, runner) as monitor:
 
             def write_results(r: EvolutionRunner) -> None:
@@ -237,7 +243,7 @@ def run(
         write_tables(out, table, robot_table(runner), learning_table(runner))
         with atomic_output(out / EVENTS_FILE) as temp:
             runner.events.write_csv(temp)
-        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps))
+        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps, earlier))
     return table
 
 
@@ -281,11 +287,18 @@ def holds_a_run(out: Path) -> bool:
 
 
 def run_record(
-    runner: EvolutionRunner, generations: int, max_steps: int | None = None
+    runner: EvolutionRunner,
+    generations: int,
+    max_steps: int | None = None,
+    earlier: Sequence[str] = (),
 ) -> dict[str, Any]:
     """The content of ``run.json``: config, the settings changed from the paper's defaults,
     seed, policies, target (generations, and the step budget if one was set), versions and
-    source commit, summary."""
+    source commit, summary.
+
+    ``earlier``: the other commits that advanced the run before this one, oldest first
+    (:func:`earlier_commits`); recorded as ``versions.earlier_commits`` when there are any.
+    """
     record: dict[str, Any] = {
         "config": dataclasses.asdict(runner.config),
         "settings": changed(runner.config),
@@ -302,7 +315,50 @@ def run_record(
     }
     if max_steps is not None:  # runs without a budget keep the record they always had
         record["max_steps"] = max_steps
+    if earlier:  # a run resumed under other code says so
+        record["versions"]["earlier_commits"] = list(earlier)
     return record
+
+
+def read_record(path: Path) -> dict[str, Any] | None:
+    """The run record at ``path``; None if it is missing or unreadable."""
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def earlier_commits(previous: Mapping[str, Any] | None) -> list[str]:
+    """The commits that advanced a run before the code now resuming it, oldest first: those
+    the ``previous`` record lists, then the commit that wrote it, where it differs from this
+    code's commit (a run resumed under the same commit adds nothing)."""
+    if previous is None:
+        return []
+    versions = previous.get("versions") or {}
+    commits = [str(c) for c in versions.get("earlier_commits") or ()]
+    last = versions.get("git_commit")
+    if last is not None and (not commits or commits[-1] != last):
+        commits.append(str(last))
+    current = source_commit()
+    return commits[:-1] if commits and commits[-1] == current else commits
+
+
+def is_final_record(
+    previous: Mapping[str, Any], runner: EvolutionRunner, generations: int, max_steps: int | None
+) -> bool:
+    """Is ``previous`` the final record of the run ``runner`` was restored to: the run reached
+    its target (or spent its step budget) and the record, written last, says exactly that?"""
+    summary = runner.summary()
+    done = runner.completed_generations >= generations or (
+        max_steps is not None and int(summary["control_steps"]) >= max_steps
+    )
+    if not done:
+        return False
+    fresh = json.loads(json.dumps(run_record(runner, generations, max_steps), default=repr))
+    return {k: v for k, v in previous.items() if k != "versions"} == {
+        k: v for k, v in fresh.items() if k != "versions"
+    }
 
 
 def package_version() -> str | None:
