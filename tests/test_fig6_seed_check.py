@@ -41,3 +41,27 @@ def test_a_mean_that_moved_more_than_the_spread_is_flagged(tmp_path: Path) -> No
     main([str(tmp_path / "runs"), "--published", str(tmp_path / "published.csv"), "--table",
           str(out)])  # fmt: skip
     assert len(pd.read_csv(out)) == 3
+
+
+def test_the_rerun_is_compared_with_the_published_runs_as_sets(tmp_path: Path) -> None:
+    published = pd.DataFrame({
+        "method": ["ee"] * 3, "seed": [0, 1, 2], "generations": "100-119",
+        "batteries": [1.0, 2.0, 3.0], "matings": [4.0, 5.0, 6.0], "completed": [80.0] * 3,
+    })  # fmt: skip
+    for seed, batteries in enumerate((4.0, 5.0, 6.0)):
+        _run(tmp_path / "runs" / f"ee-seed{seed:03d}", batteries, 5.5 - seed)
+    published.to_csv(tmp_path / "published.csv", index=False)
+    out = tmp_path / "sets.csv"
+    main([str(tmp_path / "runs"), "--published", str(tmp_path / "published.csv"), "--sets",
+          str(out)])  # fmt: skip
+    table = pd.read_csv(out).set_index("quantity")
+    # Batteries: every new run (4, 5, 6) above every published one (1, 2, 3): U = 9, the
+    # rank-biserial effect is +1, and the exact two-sided p is 2 / C(6, 3) = 0.1.
+    assert table.loc["batteries", "new_mean"] == pytest.approx(5.0)
+    assert table.loc["batteries", "difference"] == pytest.approx(3.0)
+    assert table.loc["batteries", "rank_biserial"] == pytest.approx(1.0)
+    assert table.loc["batteries", "p"] == pytest.approx(0.1)
+    assert table.loc["batteries", "test"] == "exact"
+    # Matings: new 5.5, 4.5, 3.5 against 4, 5, 6: U = 3 of 9, effect 2 * 3 / 9 - 1 = -1/3.
+    assert table.loc["matings", "rank_biserial"] == pytest.approx(-1 / 3, abs=1e-5)  # 5 decimals
+    assert table.loc["matings", "new_std"] == pytest.approx(1.0)
