@@ -49,6 +49,7 @@ from evolution.lab.api import (
     check_run_config,
     holds_a_run,
     make_config,
+    read_record,
     run,
 )
 from evolution.lab.cells import write_cell_comparison
@@ -114,13 +115,6 @@ def _is_temporary(path: Path) -> bool:
     return path.name.startswith(".") and TEMP_MARK in path.name
 
 
-def _readable_record(path: Path) -> bool:
-    try:
-        return isinstance(json.loads(path.read_text()), dict)
-    except (OSError, ValueError):
-        return False
-
-
 def stopped_while_starting(path: str | os.PathLike[str]) -> bool:
     """Does ``path`` hold only what a run stopped during its start-up leaves behind?
 
@@ -135,7 +129,7 @@ def stopped_while_starting(path: str | os.PathLike[str]) -> bool:
     for entry in entries:
         if entry.name == VERSIONS_FILE or _is_temporary(entry):
             continue
-        if entry.name == RUN_FILE and entry.is_file() and not _readable_record(entry):
+        if entry.name == RUN_FILE and entry.is_file() and read_record(entry) is None:
             continue
         if entry.name == CHECKPOINT_DIR and entry.is_dir():
             if all(_is_temporary(p) for p in entry.iterdir()):
