@@ -379,3 +379,23 @@ def test_the_tests_compare_the_study_sizes_even_before_their_runs_exist() -> Non
     pairs = tests[tests["test"].str.startswith("mann-whitney")]
     assert set(pairs["b"]) <= {"EE N=100", "CE N=100", "CE N=4"}
     assert (pairs.loc[pairs["b"].str.endswith("N=100"), "n_b"] == 0).all()
+
+
+def test_the_trend_over_n_is_a_permutation_test_not_the_t_approximation() -> None:
+    """Three runs in perfect order: 1 of the 6 orderings is as high (and 1 as low), p = 1/3;
+    scipy's t approximation would say p = 0."""
+    rho, p, kind = study.trend_test(np.array([4.0, 10.0, 25.0]), np.array([3.0, 2.0, 1.0]))
+    assert (rho, kind) == (-1.0, "exact") and p == pytest.approx(1 / 3)
+    # four in order: 1 of 24 orderings each way, p = 2/24
+    assert study.trend_test(np.arange(4.0), np.arange(4.0))[1] == pytest.approx(1 / 12)
+    # ties in N take their mean rank: x ranks 1.5, 1.5, 3.5, 3.5 against y ranks 1..4 gives
+    # rho = 4 / sqrt(4 x 5); the high pair {3, 4} is 1 of the 6 pairs (4 orderings each) that
+    # can face the high N, so p = 2 x 4/24
+    rho, p, kind = study.trend_test(np.array([4.0, 4.0, 100.0, 100.0]), np.arange(1.0, 5.0))
+    assert rho == pytest.approx(4 / np.sqrt(20)) and p == pytest.approx(1 / 3)
+    # 25 runs: the orderings are drawn, with a fixed seed
+    x = np.repeat([4.0, 10.0, 25.0, 50.0, 100.0], 5)
+    y = np.arange(25.0) % 7
+    first, second = study.trend_test(x, y), study.trend_test(x, y)
+    assert first == second and first[2] == "permutation"
+    assert study.trend_test(np.full(3, 4.0), np.arange(3.0))[2] == "none"
