@@ -52,6 +52,13 @@ fewer); cells with fewer seeds are reported with their ``runs``. The questions:
    each generation's offspring and their effective number (:func:`mating_table`);
 4. EE against CE at N = 100 (the paper: CE captures more batteries, EE mates more);
 5. deaths and completions against N.
+
+``--walls`` checks question 1's reading: where are the robots? It replays the last generation
+of each finished run in ``--out`` from its checkpoint (the replay must close it at the step
+the run did), samples robots and packs every :data:`POSITION_EVERY` world steps, and writes
+``walls.csv``: the share of robot centres within :data:`WALL_BAND` of a wall, against the
+share of the reachable field there (:func:`wall_share`) and the packs' share. It needs the run
+directories, and takes about a sixtieth of the study's time.
 """
 
 from __future__ import annotations
@@ -75,6 +82,7 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 
 from benchmarks.colony_scale import paper_density  # noqa: E402
 from benchmarks.publish_runs import finished, publish_run  # noqa: E402
+from cyber_rodent import constants as C  # noqa: E402
 from cyber_rodent.atomic import atomic_output, write_text  # noqa: E402
 from evolution.config import EvolutionConfig  # noqa: E402
 from evolution.lab.comparison import available_window, rank_test  # noqa: E402
@@ -982,6 +990,111 @@ def analyse(published: Path, figure: Path) -> tuple[list[Path], str]:
     return written, markdown(summary, tests, window)
 
 
+# --- question 1's check: do the robots crowd the walls? ----------------------------------------
+#: A robot or pack whose centre is closer than this to a wall (m) counts as at the wall.
+WALL_BAND = 0.5
+#: World control steps between two position samples.
+POSITION_EVERY = 50
+WALLS_FILE = "walls.csv"
+
+
+def wall_share(half: float, band: float = WALL_BAND, clearance: float = C.BODY_RADIUS) -> float:
+    """The share of the square a centre can reach (``half - clearance`` either side of the
+    middle) that lies within ``band`` of a wall: where uniformly spread robots would be."""
+    reach = half - clearance
+    if reach <= 0:
+        return 1.0
+    inner = min(max(0.0, half - band), reach)
+    return 1.0 - (inner / reach) ** 2
+
+
+def near_wall(xy: np.ndarray, half: float, band: float = WALL_BAND) -> np.ndarray:
+    """Which of the ``(n, 2)`` centres of a field of half side ``half`` are within ``band`` of a
+    wall."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    distance: np.ndarray = half - np.abs(xy).max(axis=1)
+    return distance < band
+
+
+def sample_walls(path: Path, every: int = POSITION_EVERY) -> dict[str, Any]:
+    """Replay the last generation of the finished run in ``path`` from its checkpoint and
+    sample where its robots and packs are every ``every`` world steps.
+
+    The replay must close the generation at the step the run's ``statistics.csv`` records.
+
+    Raises:
+        StudyError: the run has no checkpoint of its last generation's start, or the replay
+            closes it at another step.
+    """
+    from evolution.runner import EvolutionRunner
+
+    statistics = pd.read_csv(path / "statistics.csv")
+    last = int(statistics["generation"].max())
+    checkpoint = path / "checkpoints" / f"gen_{last:05d}.ckpt"
+    if not checkpoint.is_file():
+        raise StudyError(f"{path}: no checkpoint {checkpoint.name} to replay generation {last}")
+    robots = robot_samples = packs = pack_samples = 0
+    with EvolutionRunner.from_checkpoint(checkpoint) as runner:
+        world = runner.world
+        half = world.config.field_size / 2
+        while runner.completed_generations <= last:
+            runner.step()
+            if runner.steps % every == 0:
+                robot_xy = world.poses()[:, :2]
+                pack_xy = world.pack_positions()
+                robots += int(near_wall(robot_xy, half).sum())
+                packs += int(near_wall(pack_xy, half).sum())
+                robot_samples += len(robot_xy)
+                pack_samples += len(pack_xy)
+        closed = runner.generation_steps[last]
+    expected = int(statistics.set_index("generation").at[last, "closed_at_step"])
+    if closed != expected:
+        raise StudyError(f"{path}: the replay closed generation {last} at step {closed}, the run "
+                         f"at {expected}")  # fmt: skip
+    field = wall_share(half)
+    robot_share = robots / max(1, robot_samples)
+    return {"generation": last, "field_side": 2 * half, "robot_samples": robot_samples,
+            "robots_at_wall": robot_share, "packs_at_wall": packs / max(1, pack_samples),
+            "field_at_wall": field, "robots_over_field": robot_share / field}  # fmt: skip
+
+
+def wall_table(spec: SweepSpec, out: Path, every: int = POSITION_EVERY) -> pd.DataFrame:
+    """:func:`sample_walls` of every finished run of ``spec`` in ``out``, one row per run."""
+    rows = []
+    for member in spec.runs:
+        path = run_dir(out, *member)
+        if not run_finished(path):
+            continue
+        print(f"{PROG}: replaying the last generation of {run_dir('', *member)}", flush=True)
+        n = n_robots_of(spec, member.cell)
+        rows.append({"cell": member.cell, "n_robots": n, "method": member.method,
+                     "seed": member.seed, **sample_walls(path, every)})  # fmt: skip
+    table = pd.DataFrame(rows)
+    if len(table):
+        table = table.sort_values(["n_robots", "method", "seed"], key=_method_first)
+    return table.reset_index(drop=True)
+
+
+def _method_first(column: pd.Series) -> pd.Series:
+    return column.map({"ee": 0, "ce": 1}) if column.name == "method" else column
+
+
+def walls_markdown(table: pd.DataFrame) -> str:
+    """Per cell and method: the runs' mean shares at the wall."""
+    lines = [f"Centres within {WALL_BAND} m of a wall, sampled every {POSITION_EVERY} steps of "
+             "each run's last generation (mean ± std over runs):", "",
+             "| N | method | runs | robots at the wall | packs at the wall | field at the wall "
+             "| robots / field |", "|" + " --- |" * 7]  # fmt: skip
+    for (n, method), group in table.groupby(["n_robots", "method"], sort=False):
+        cells = [_fmt(group[c].mean(), group[c].std(), 3)
+                 for c in ("robots_at_wall", "packs_at_wall")]  # fmt: skip
+        ratio = group["robots_over_field"]
+        lines.append(f"| {n} | {str(method).upper()} | {len(group)} | {' | '.join(cells)} | "
+                     f"{group['field_at_wall'].iloc[0]:.3f} | "
+                     f"{_fmt(ratio.mean(), ratio.std(), 2)} |")  # fmt: skip
+    return "\n".join(lines)
+
+
 # --- the cost estimate ---------------------------------------------------------------------------
 def measure_step_costs(
     spec: SweepSpec, cells: Iterable[str], robot_steps: int = ESTIMATE_ROBOT_STEPS
@@ -1107,6 +1220,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--generations", type=int, default=GENERATIONS)
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="change a setting of every run (not a cell's own keys)")
+    parser.add_argument("--walls", action="store_true",
+                        help="replay each finished run's last generation in --out from its "
+                        f"checkpoint, and write where its robots are ({WALLS_FILE})")
     parser.add_argument("--no-estimate", action="store_true",
                         help="start without timing the cost estimate first")  # fmt: skip
     args = parser.parse_args(argv)
@@ -1159,6 +1275,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     for path in written:
         print(f"wrote {path}")
     print(text)
+    if args.walls:
+        try:
+            walls = wall_table(spec, args.out)
+        except StudyError as err:
+            print(f"{PROG}: {err}", file=sys.stderr)
+            return 1
+        print(f"wrote {_write_csv(walls, args.published / WALLS_FILE)}")
+        print(walls_markdown(walls))
     return 1 if failed else 0
 
 

@@ -399,3 +399,37 @@ def test_the_trend_over_n_is_a_permutation_test_not_the_t_approximation() -> Non
     first, second = study.trend_test(x, y), study.trend_test(x, y)
     assert first == second and first[2] == "permutation"
     assert study.trend_test(np.full(3, 4.0), np.arange(3.0))[2] == "none"
+
+
+# --- where the robots are -------------------------------------------------------------------------
+def test_the_wall_band_share_of_the_field_by_hand() -> None:
+    # The paper's 2.3 m field: centres reach 1.15 - 0.14 = 1.01 m either side of the middle;
+    # the inner square keeping 0.5 m from the walls has half side 0.65 m.
+    assert study.wall_share(1.15, 0.5, 0.14) == pytest.approx(1 - (0.65 / 1.01) ** 2)
+    # 11.5 m (N = 100): 1 - (5.25 / 5.61)^2.
+    assert study.wall_share(5.75, 0.5, 0.14) == pytest.approx(1 - (5.25 / 5.61) ** 2)
+    assert study.wall_share(0.4, 0.5, 0.14) == 1.0  # every reachable point is at a wall
+    xy = np.array([[0.0, 0.0], [0.66, 0.0], [0.64, -0.64], [-1.0, 0.2], [0.1, -0.651]])
+    assert study.near_wall(xy, 1.15, 0.5).tolist() == [False, True, False, True, True]
+
+
+def test_the_walls_replay_the_last_generation_of_each_run(tmp_path: Path) -> None:
+    out = tmp_path / "runs"
+    paths = ["--out", str(out), "--published", str(tmp_path / "results"),
+             "--figure", str(tmp_path / "figure.png")]  # fmt: skip
+    tiny = [a for a in TINY_ARGS if a not in ("--ce-sizes", "4")]
+    tiny[tiny.index("--sizes") + 1] = "4"
+    assert study.main(["--run", *paths, *tiny, "--ce-sizes", "", "--walls"]) == 0
+    table = pd.read_csv(tmp_path / "results" / study.WALLS_FILE)
+    assert table[["cell", "method", "seed", "generation"]].values.tolist() == [["n004", "ee", 0, 1]]
+    row = table.iloc[0]
+    assert row["field_at_wall"] == pytest.approx(study.wall_share(1.15))
+    assert 0 <= row["robots_at_wall"] <= 1 and 0 <= row["packs_at_wall"] <= 1
+    assert row["robot_samples"] % 4 == 0 and row["robot_samples"] > 0
+    # A replay that closes the generation elsewhere is refused.
+    statistics = run_dir(out, "ee", 0, "n004") / "statistics.csv"
+    table = pd.read_csv(statistics)
+    table.loc[table.index[-1], "closed_at_step"] += 1
+    table.to_csv(statistics, index=False)
+    with pytest.raises(study.StudyError, match="the replay closed generation 1"):
+        study.sample_walls(run_dir(out, "ee", 0, "n004"))
