@@ -51,7 +51,9 @@ fewer); cells with fewer seeds are reported with their ``runs``. The questions:
 3. who mates with whom: distinct partners per agent and life, and the distinct parents behind
    each generation's offspring and their effective number (:func:`mating_table`);
 4. EE against CE at N = 100 (the paper: CE captures more batteries, EE mates more);
-5. deaths and completions against N.
+5. deaths and completions against N, and the share of newborns that are random genomes (EE
+   replaces an agent that died, or lived without mating, from its robot's spare list, or with a
+   random genome when that list is empty; descriptive, not tested).
 
 ``--walls`` checks question 1's reading: where are the robots? It replays the last generation
 of each finished run in ``--out`` from its checkpoint (the replay must close it at the step
@@ -657,6 +659,7 @@ WINDOW_QUANTITIES = (
     ("completed", "statistics", "completed"),
     ("full_lifetimes", "statistics", "full_lifetimes"),
     ("deaths", "statistics", "deaths"),
+    ("random_share", "statistics", "random_share"),
     ("partners_per_mated_life", "matings", "partners_per_mated_life"),
     ("matings_per_mated_life", "matings", "matings_per_mated_life"),
     ("partner_robots_per_mated_life", "matings", "partner_robots_per_mated_life"),
@@ -932,10 +935,10 @@ def _fmt(mean: float, std: float, digits: int = 2) -> str:
 def markdown(summary: pd.DataFrame, tests: pd.DataFrame, window: tuple[int, int]) -> str:
     """The summary and the tests as Markdown tables."""
     columns = (("batteries", 1), ("matings", 2), ("completed", 1), ("deaths", 1),
-               ("reach_generation", 1), ("reach_robot_hours", 1),
+               ("random_share", 2), ("reach_generation", 1), ("reach_robot_hours", 1),
                ("partners_per_mated_life", 2), ("parents_effective", 1))  # fmt: skip
-    heads = ("batteries", "matings", "completed", "deaths", "gen. to 90 %", "robot-h to 90 %",
-             "partners / mated life", "eff. parents")  # fmt: skip
+    heads = ("batteries", "matings", "completed", "deaths", "random newborns", "gen. to 90 %",
+             "robot-h to 90 %", "partners / mated life", "eff. parents")  # fmt: skip
     lines = [f"Per-run means over generations {window[0]}-{window[1]}, mean ± std over runs:",
              "", "| N | agents/robot | method | runs | " + " | ".join(heads) + " |",
              "|" + " --- |" * (4 + len(heads))]  # fmt: skip

@@ -312,7 +312,8 @@ def publish_synthetic(root: Path, n: int, method: str, seed: int, batteries: flo
         "generation": generations,
         "batteries_mean": np.where(generations < 10, 0.0, batteries),
         "matings_mean": matings, "completed": 50 + seed, "full_lifetimes": 90,
-        "deaths": 10 - seed, "closed_at_step": 1000 * (generations + 1),
+        "deaths": 10 - seed, "random_share": 0.1 * seed,
+        "closed_at_step": 1000 * (generations + 1),
     })  # fmt: skip
     statistics.to_csv(run / "statistics.csv", index=False)
     pd.DataFrame({"generation": generations, "partners_per_mated_life": partners,
@@ -342,6 +343,7 @@ def test_the_analysis_of_published_runs_by_hand(
     assert summary.loc[(4, "ee"), "batteries_std"] == 1.0
     assert summary.loc[(100, "ee"), "partners_per_mated_life"] == 2.0
     assert summary.loc[(4, "ee"), "deaths"] == 9.0  # 10, 9, 8
+    assert summary.loc[(4, "ee"), "random_share"] == pytest.approx(0.1)  # 0, 0.1, 0.2
     runs = pd.read_csv(root / "runs.csv").set_index(["n_robots", "method", "seed"])
     # batteries jump to their final level at generation 10; the trailing mean of 5 reaches
     # 90 % of it at generation 14 (4 of 5 generations: 80 %; 5 of 5: 100 %)
