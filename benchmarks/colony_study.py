@@ -47,7 +47,8 @@ fewer); cells with fewer seeds are reported with their ``runs``. The questions:
    x N x ``survival.control_dt`` / 3600, to the step at which the generation closed), at which
    a run's batteries reach :data:`REACH_SHARE` of its final level (its mean over the window),
    batteries smoothed by a trailing mean over :data:`REACH_SMOOTHING` generations
-   (:func:`reach_generation`);
+   (:func:`reach_generation`); with the starting level (the mean over generations 0-4,
+   :data:`FIRST_WINDOW`), which says whether there was a rise to reach at all;
 3. who mates with whom: distinct partners per agent and life, and the distinct parents behind
    each generation's offspring and their effective number (:func:`mating_table`);
 4. EE against CE at N = 100 (the paper: CE captures more batteries, EE mates more);
@@ -109,6 +110,8 @@ SEEDS = "0-4"
 GENERATIONS = 60
 #: Generations each run's mean is taken over (inclusive).
 FINAL_WINDOW = (50, 59)
+#: Generations whose mean is a run's starting level (question 2: how far batteries rose).
+FIRST_WINDOW = (0, 4)
 #: Share of the final level batteries must reach (question 2), and the trailing mean's width.
 REACH_SHARE = 0.9
 REACH_SMOOTHING = 5
@@ -670,7 +673,7 @@ WINDOW_QUANTITIES = (
 )
 #: The per-run quantities of the summary and the tests, in the order they are reported.
 QUANTITIES = tuple(name for name, _, _ in WINDOW_QUANTITIES) + (
-    "final_level", "reach_generation", "reach_robot_hours", "robot_hours_per_generation",
+    "first_level", "final_level", "reach_generation", "reach_robot_hours", "robot_hours_per_generation",
 )  # fmt: skip
 
 
@@ -752,6 +755,7 @@ def per_run_table(runs: Sequence[PublishedRun], window: tuple[int, int]) -> pd.D
         for name, source, column in WINDOW_QUANTITIES:
             table = run.statistics if source == "statistics" else run.matings
             row[name] = window_mean(table, column, window)
+        row["first_level"] = window_mean(run.statistics, "batteries_mean", FIRST_WINDOW)
         row["final_level"] = row["batteries"]
         reached = reach_generation(run.statistics, row["final_level"])
         row["reach_generation"] = math.nan if reached is None else reached

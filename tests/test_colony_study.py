@@ -348,6 +348,7 @@ def test_the_analysis_of_published_runs_by_hand(
     # batteries jump to their final level at generation 10; the trailing mean of 5 reaches
     # 90 % of it at generation 14 (4 of 5 generations: 80 %; 5 of 5: 100 %)
     assert (runs["reach_generation"] == 14).all()
+    assert (runs["first_level"] == 0).all()  # generations 0-4 are all 0
     # generation 14 closed at world step 15,000: x 4 robots x 0.2 s = 3.33 robot-hours
     hours = runs["reach_robot_hours"]
     assert hours[(4, "ee", 0)] == pytest.approx(15_000 * 4 * 0.2 / 3600, rel=1e-5)
