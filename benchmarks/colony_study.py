@@ -673,7 +673,8 @@ WINDOW_QUANTITIES = (
 )
 #: The per-run quantities of the summary and the tests, in the order they are reported.
 QUANTITIES = tuple(name for name, _, _ in WINDOW_QUANTITIES) + (
-    "first_level", "final_level", "reach_generation", "reach_robot_hours", "robot_hours_per_generation",
+    "first_level", "final_level", "reach_generation", "reach_robot_hours",
+    "robot_hours_per_generation",
 )  # fmt: skip
 
 
