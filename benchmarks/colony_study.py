@@ -37,7 +37,7 @@ run, not published; :func:`mating_table`).
 Without ``--run`` (and after it) the analysis reads the published tables only and writes
 ``summary.csv`` (per cell and method), ``runs.csv`` (per run) and ``tests.csv`` (the
 Mann-Whitney tests and Spearman trends) into ``--published``, the figure
-``docs/figures/colony_scale.png``, and prints a Markdown table. Each run contributes its mean
+``docs/images/colony_scale.png``, and prints a Markdown table. Each run contributes its mean
 over generations 50-59 (:data:`FINAL_WINDOW`; the last 10 generations every run reached, if
 fewer); cells with fewer seeds are reported with their ``runs``. The questions:
 
@@ -1219,7 +1219,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="run on Ray: auto, HOST:PORT or local (default: local processes)")
     parser.add_argument("--published", type=Path, default=Path("results/colony_scale"),
                         help="where finished runs' tables and the analysis go")  # fmt: skip
-    parser.add_argument("--figure", type=Path, default=Path("docs/figures/colony_scale.png"))
+    parser.add_argument("--figure", type=Path, default=Path("docs/images/colony_scale.png"))
     parser.add_argument("--sizes", default=",".join(map(str, SIZES)), help="robot counts")
     parser.add_argument("--ce-sizes", default=",".join(map(str, CE_SIZES)),
                         help="robot counts CE runs at too ('' for none)")  # fmt: skip
