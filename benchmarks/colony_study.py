@@ -890,20 +890,21 @@ def test_table(
 
 
 def plot_study(runs: Sequence[PublishedRun], path: Path) -> Path:
-    """Batteries and matings per life against generation (mean over seeds), one line per N,
-    EE and CE side by side."""
+    """Batteries and matings per life, and the agents that completed the task, against
+    generation (mean over seeds), one line per N, EE and CE side by side."""
     from evolution.lab.figures import styled_pyplot
 
     plt = styled_pyplot()
     sizes = sorted({r.n_robots for r in runs})
     colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.9, max(2, len(sizes))))
-    fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True, sharey="row", squeeze=False)
+    quantities = ("batteries_mean", "matings_mean", "completed")
+    fig, axes = plt.subplots(3, 2, figsize=(11, 10), sharex=True, sharey="row", squeeze=False)
     for column, method in enumerate(("ee", "ce")):
         for n, colour in zip(sizes, colours, strict=False):
             chosen = [r for r in runs if r.method == method and r.n_robots == n]
             if not chosen:
                 continue
-            for row, quantity in enumerate(("batteries_mean", "matings_mean")):
+            for row, quantity in enumerate(quantities):
                 curve = pd.concat(
                     [r.statistics.set_index("generation")[quantity] for r in chosen], axis=1
                 ).mean(axis=1)
@@ -913,16 +914,19 @@ def plot_study(runs: Sequence[PublishedRun], path: Path) -> Path:
                     curve.index, curve.to_numpy(), color=colour, lw=1.5, label=label
                 )
         axes[0][column].set_title(f"{method.upper()}")
-        axes[1][column].set_xlabel("generation")
+        axes[-1][column].set_xlabel("generation")
+    population = runs[0].agents_per_robot * runs[0].n_robots
     axes[0][0].set_ylabel("batteries per life")
     axes[1][0].set_ylabel("matings per life")
+    axes[2][0].set_ylabel(f"agents completing the task (of {population})")
     for ax in axes.ravel():
         ax.grid(alpha=0.3)
+    for ax in axes[0]:  # one legend per method: the rows share their lines
         if ax.get_legend_handles_labels()[0]:
             ax.legend(frameon=False, fontsize=8)
-    population = runs[0].agents_per_robot * runs[0].n_robots
-    fig.suptitle(f"{population} agents on N robots at the paper's density: mean over seeds of "
-                 "each generation's agents that completed the task", fontsize=11)  # fmt: skip
+    fig.suptitle(f"{population} agents on N robots at the paper's density, mean over seeds; "
+                 "batteries and matings over each generation's agents that completed the task",
+                 fontsize=11)  # fmt: skip
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_output(path) as temp:
