@@ -87,6 +87,7 @@ from benchmarks.colony_scale import paper_density  # noqa: E402
 from benchmarks.publish_runs import finished, publish_run  # noqa: E402
 from cyber_rodent import constants as C  # noqa: E402
 from cyber_rodent.atomic import atomic_output, write_text  # noqa: E402
+from evolution.agent import Origin  # noqa: E402
 from evolution.config import EvolutionConfig  # noqa: E402
 from evolution.lab.comparison import available_window, rank_test  # noqa: E402
 from evolution.lab.grid import Cell  # noqa: E402
@@ -636,18 +637,12 @@ def mating_table(
         else:
             successors = origin_of.reindex(group.index.to_numpy() + 1)
             row["offspring"] = (
-                int((successors == _origin("SELECTED")).sum()) if method == "ce" else math.nan
+                int((successors == int(Origin.SELECTED)).sum()) if method == "ce" else math.nan
             )
             row["parents"] = math.nan
             row["parents_effective"] = math.nan
         rows.append(row)
     return pd.DataFrame(rows)
-
-
-def _origin(name: str) -> int:
-    from evolution.agent import Origin
-
-    return int(Origin[name])
 
 
 def _mean(values: pd.Series) -> float:
@@ -1045,29 +1040,42 @@ def sample_walls(path: Path, every: int = POSITION_EVERY) -> dict[str, Any]:
     checkpoint = path / "checkpoints" / f"gen_{last:05d}.ckpt"
     if not checkpoint.is_file():
         raise StudyError(f"{path}: no checkpoint {checkpoint.name} to replay generation {last}")
-    robots = robot_samples = packs = pack_samples = 0
+    # samples and those at the wall: robots whose active agent has a random genome, the other
+    # robots, and packs
+    counts = np.zeros((3, 2), dtype=np.int64)
+    random_origins = (int(Origin.INITIAL), int(Origin.RANDOM))
     with EvolutionRunner.from_checkpoint(checkpoint) as runner:
-        world = runner.world
+        world, scheduler = runner.world, runner.scheduler
         half = world.config.field_size / 2
         while runner.completed_generations <= last:
             runner.step()
             if runner.steps % every == 0:
-                robot_xy = world.poses()[:, :2]
-                pack_xy = world.pack_positions()
-                robots += int(near_wall(robot_xy, half).sum())
-                packs += int(near_wall(pack_xy, half).sum())
-                robot_samples += len(robot_xy)
-                pack_samples += len(pack_xy)
+                at_wall = near_wall(world.poses()[:, :2], half)
+                random = np.array([
+                    int(scheduler.slots[r][int(slot)].origin) in random_origins
+                    for r, slot in enumerate(scheduler.active_slot)
+                ])  # fmt: skip
+                for row, chosen in enumerate((random, ~random)):
+                    counts[row] += (int(chosen.sum()), int(at_wall[chosen].sum()))
+                packs = near_wall(world.pack_positions(), half)
+                counts[2] += (len(packs), int(packs.sum()))
         closed = runner.generation_steps[last]
     expected = int(statistics.set_index("generation").at[last, "closed_at_step"])
     if closed != expected:
         raise StudyError(f"{path}: the replay closed generation {last} at step {closed}, the run "
                          f"at {expected}")  # fmt: skip
     field = wall_share(half)
-    robot_share = robots / max(1, robot_samples)
+    robot_samples = int(counts[:2, 0].sum())
+    robot_share = counts[:2, 1].sum() / max(1, robot_samples)
+
+    def share(row: int) -> float:
+        return float(counts[row, 1] / counts[row, 0]) if counts[row, 0] else math.nan
+
     return {"generation": last, "field_side": 2 * half, "robot_samples": robot_samples,
-            "robots_at_wall": robot_share, "packs_at_wall": packs / max(1, pack_samples),
-            "field_at_wall": field, "robots_over_field": robot_share / field}  # fmt: skip
+            "robots_at_wall": robot_share, "packs_at_wall": share(2), "field_at_wall": field,
+            "robots_over_field": robot_share / field,
+            "random_genomes": counts[0, 0] / max(1, robot_samples),
+            "random_at_wall": share(0), "others_at_wall": share(1)}  # fmt: skip
 
 
 def wall_table(spec: SweepSpec, out: Path, every: int = POSITION_EVERY) -> pd.DataFrame:
@@ -1095,11 +1103,13 @@ def walls_markdown(table: pd.DataFrame) -> str:
     """Per cell and method: the runs' mean shares at the wall."""
     lines = [f"Centres within {WALL_BAND} m of a wall, sampled every {POSITION_EVERY} steps of "
              "each run's last generation (mean ± std over runs):", "",
-             "| N | method | runs | robots at the wall | packs at the wall | field at the wall "
-             "| robots / field |", "|" + " --- |" * 7]  # fmt: skip
+             "| N | method | runs | robots at the wall | packs at the wall | robots running a "
+             "random genome | of those, at the wall | the others at the wall | field at the "
+             "wall | robots / field |", "|" + " --- |" * 10]  # fmt: skip
     for (n, method), group in table.groupby(["n_robots", "method"], sort=False):
         cells = [_fmt(group[c].mean(), group[c].std(), 3)
-                 for c in ("robots_at_wall", "packs_at_wall")]  # fmt: skip
+                 for c in ("robots_at_wall", "packs_at_wall", "random_genomes",
+                           "random_at_wall", "others_at_wall")]  # fmt: skip
         ratio = group["robots_over_field"]
         lines.append(f"| {n} | {str(method).upper()} | {len(group)} | {' | '.join(cells)} | "
                      f"{group['field_at_wall'].iloc[0]:.3f} | "

@@ -429,6 +429,10 @@ def test_the_walls_replay_the_last_generation_of_each_run(tmp_path: Path) -> Non
     assert row["field_at_wall"] == pytest.approx(study.wall_share(1.15))
     assert 0 <= row["robots_at_wall"] <= 1 and 0 <= row["packs_at_wall"] <= 1
     assert row["robot_samples"] % 4 == 0 and row["robot_samples"] > 0
+    # robots running a random genome and the others split the samples
+    random = row["random_genomes"]
+    parts = [(random, row["random_at_wall"]), (1 - random, row["others_at_wall"])]
+    assert sum(w * share for w, share in parts if w > 0) == pytest.approx(row["robots_at_wall"])
     # A replay that closes the generation elsewhere is refused.
     statistics = run_dir(out, "ee", 0, "n004") / "statistics.csv"
     table = pd.read_csv(statistics)
