@@ -60,8 +60,9 @@ fewer); cells with fewer seeds are reported with their ``runs``. The questions:
 of each finished run in ``--out`` from its checkpoint (the replay must close it at the step
 the run did), samples robots and packs every :data:`POSITION_EVERY` world steps, and writes
 ``walls.csv``: the share of robot centres within :data:`WALL_BAND` of a wall, against the
-share of the reachable field there (:func:`wall_share`) and the packs' share. It needs the run
-directories, and takes about a sixtieth of the study's time.
+share of the reachable field there (:func:`wall_share`) and the packs' share, for the robots
+running a random genome and the others, and the share of robots running an agent at all. It
+needs the run directories, and takes about a sixtieth of the study's time.
 """
 
 from __future__ import annotations
@@ -1043,6 +1044,7 @@ def sample_walls(path: Path, every: int = POSITION_EVERY) -> dict[str, Any]:
     # samples and those at the wall: robots whose active agent has a random genome, the other
     # robots, and packs
     counts = np.zeros((3, 2), dtype=np.int64)
+    active = 0  # robot-samples running an agent (a CE robot whose agents all finished idles)
     random_origins = (int(Origin.INITIAL), int(Origin.RANDOM))
     with EvolutionRunner.from_checkpoint(checkpoint) as runner:
         world, scheduler = runner.world, runner.scheduler
@@ -1057,6 +1059,7 @@ def sample_walls(path: Path, every: int = POSITION_EVERY) -> dict[str, Any]:
                 ])  # fmt: skip
                 for row, chosen in enumerate((random, ~random)):
                     counts[row] += (int(chosen.sum()), int(at_wall[chosen].sum()))
+                active += int(np.count_nonzero(scheduler.active))
                 packs = near_wall(world.pack_positions(), half)
                 counts[2] += (len(packs), int(packs.sum()))
         closed = runner.generation_steps[last]
@@ -1075,7 +1078,8 @@ def sample_walls(path: Path, every: int = POSITION_EVERY) -> dict[str, Any]:
             "robots_at_wall": robot_share, "packs_at_wall": share(2), "field_at_wall": field,
             "robots_over_field": robot_share / field,
             "random_genomes": counts[0, 0] / max(1, robot_samples),
-            "random_at_wall": share(0), "others_at_wall": share(1)}  # fmt: skip
+            "random_at_wall": share(0), "others_at_wall": share(1),
+            "active_robots": active / max(1, robot_samples)}  # fmt: skip
 
 
 def wall_table(spec: SweepSpec, out: Path, every: int = POSITION_EVERY) -> pd.DataFrame:
@@ -1105,15 +1109,16 @@ def walls_markdown(table: pd.DataFrame) -> str:
              "each run's last generation (mean ± std over runs):", "",
              "| N | method | runs | robots at the wall | packs at the wall | robots running a "
              "random genome | of those, at the wall | the others at the wall | field at the "
-             "wall | robots / field |", "|" + " --- |" * 10]  # fmt: skip
+             "wall | robots / field | robots running an agent |", "|" + " --- |" * 11]  # fmt: skip
     for (n, method), group in table.groupby(["n_robots", "method"], sort=False):
         cells = [_fmt(group[c].mean(), group[c].std(), 3)
                  for c in ("robots_at_wall", "packs_at_wall", "random_genomes",
                            "random_at_wall", "others_at_wall")]  # fmt: skip
-        ratio = group["robots_over_field"]
+        ratio, active = group["robots_over_field"], group["active_robots"]
         lines.append(f"| {n} | {str(method).upper()} | {len(group)} | {' | '.join(cells)} | "
                      f"{group['field_at_wall'].iloc[0]:.3f} | "
-                     f"{_fmt(ratio.mean(), ratio.std(), 2)} |")  # fmt: skip
+                     f"{_fmt(ratio.mean(), ratio.std(), 2)} | "
+                     f"{_fmt(active.mean(), active.std(), 3)} |")  # fmt: skip
     return "\n".join(lines)
 
 

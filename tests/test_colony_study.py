@@ -433,6 +433,7 @@ def test_the_walls_replay_the_last_generation_of_each_run(tmp_path: Path) -> Non
     random = row["random_genomes"]
     parts = [(random, row["random_at_wall"]), (1 - random, row["others_at_wall"])]
     assert sum(w * share for w, share in parts if w > 0) == pytest.approx(row["robots_at_wall"])
+    assert row["active_robots"] == 1.0  # an EE robot always runs an agent
     # A replay that closes the generation elsewhere is refused.
     statistics = run_dir(out, "ee", 0, "n004") / "statistics.csv"
     table = pd.read_csv(statistics)
