@@ -45,10 +45,13 @@ fewer); cells with fewer seeds are reported with their ``runs``. The questions:
    against N; N = 4 against N = 100 for EE and for CE;
 2. per unit of robot time: the generation, and the simulated robot-hours (world control steps
    x N x ``survival.control_dt`` / 3600, to the step at which the generation closed), at which
-   a run's batteries reach :data:`REACH_SHARE` of its final level (its mean over the window),
-   batteries smoothed by a trailing mean over :data:`REACH_SMOOTHING` generations
-   (:func:`reach_generation`); with the starting level (the mean over generations 0-4,
-   :data:`FIRST_WINDOW`), which says whether there was a rise to reach at all;
+   a run's batteries reach :data:`REACH_SHARE` of its cell's final level (the mean over the
+   cell's runs of their means over the window), and of the paper colony's level (the cell of
+   :data:`PAPER_ROBOTS` robots, same method; a run that never reaches it is censored at the
+   study's end and ranks above every run that did), batteries smoothed by a trailing mean
+   over :data:`REACH_SMOOTHING` generations (:func:`reach_generation`); with the starting
+   level (the mean over generations 0-4, :data:`FIRST_WINDOW`), which says whether there was
+   a rise to reach at all;
 3. who mates with whom: distinct partners per agent and life, and the distinct parents behind
    each generation's offspring and their effective number (:func:`mating_table`);
 4. EE against CE at N = 100 (the paper: CE captures more batteries, EE mates more);
@@ -112,6 +115,8 @@ SEEDS = "0-4"
 GENERATIONS = 60
 #: Generations each run's mean is taken over (inclusive).
 FINAL_WINDOW = (50, 59)
+#: The paper's colony: question 2's practical target is its final level (same method).
+PAPER_ROBOTS = 4
 #: Generations whose mean is a run's starting level (question 2: how far batteries rose).
 FIRST_WINDOW = (0, 4)
 #: Share of the final level batteries must reach (question 2), and the trailing mean's width.
@@ -669,7 +674,8 @@ WINDOW_QUANTITIES = (
 )
 #: The per-run quantities of the summary and the tests, in the order they are reported.
 QUANTITIES = tuple(name for name, _, _ in WINDOW_QUANTITIES) + (
-    "first_level", "final_level", "reach_generation", "reach_robot_hours",
+    "first_level", "final_level", "reach_generation", "reach_robot_hours", "paper_level",
+    "reached_paper", "reach_paper_generation", "reach_paper_robot_hours",
     "robot_hours_per_generation",
 )  # fmt: skip
 
@@ -753,17 +759,32 @@ def per_run_table(runs: Sequence[PublishedRun], window: tuple[int, int]) -> pd.D
             table = run.statistics if source == "statistics" else run.matings
             row[name] = window_mean(table, column, window)
         row["first_level"] = window_mean(run.statistics, "batteries_mean", FIRST_WINDOW)
-        row["final_level"] = row["batteries"]
-        reached = reach_generation(run.statistics, row["final_level"])
-        row["reach_generation"] = math.nan if reached is None else reached
-        row["reach_robot_hours"] = math.nan if reached is None else robot_hours(run, reached)
         first, last = window
         stats = run.statistics.set_index("generation")
         before = float(stats.at[first - 1, "closed_at_step"]) if first > 0 else 0.0
         steps = (float(stats.at[last, "closed_at_step"]) - before) / (last - first + 1)
         row["robot_hours_per_generation"] = steps * run.n_robots * run.control_dt / 3600.0
         rows.append(row)
-    return pd.DataFrame(rows)
+    table = pd.DataFrame(rows)
+    if not len(table):
+        return table
+    # question 2: the cell's final level (the mean over its runs), and the paper colony's (the
+    # smallest colony's, same method)
+    levels = table.groupby(["n_robots", "method"])["batteries"].mean()
+    for i, run in enumerate(runs):
+        level = float(levels[(run.n_robots, run.method)])
+        paper = levels.get((PAPER_ROBOTS, run.method), math.nan)
+        table.loc[i, "final_level"] = level
+        table.loc[i, "paper_level"] = paper
+        for prefix, target in (("reach", level), ("reach_paper", float(paper))):
+            reached = reach_generation(run.statistics, target)
+            table.loc[i, f"{prefix}_generation"] = math.nan if reached is None else reached
+            table.loc[i, f"{prefix}_robot_hours"] = (
+                math.nan if reached is None else robot_hours(run, reached)
+            )
+        reached_paper = not math.isnan(table.loc[i, "reach_paper_generation"])
+        table.loc[i, "reached_paper"] = float(reached_paper)
+    return table
 
 
 def summary_table(per_run: pd.DataFrame) -> pd.DataFrame:
@@ -788,10 +809,14 @@ def summary_table(per_run: pd.DataFrame) -> pd.DataFrame:
 #: The tests of tests.csv: (question, quantity, group a, group b), a group being a method and
 #: ``"small"`` or ``"large"``: the fewest and the most robots CE ran at (N = 4 and N = 100), or
 #: EE where CE ran at none.
+#: Question 2's times to the paper colony's level: a run that never reached it is censored at
+#: the study's end, and ranks above every run that did (infinite in the rank tests).
+CENSORED = ("reach_paper_generation", "reach_paper_robot_hours")
 TESTS = (
     *((1, q, (m, "small"), (m, "large")) for m in ("ee", "ce") for q in ("batteries", "matings")),
     *((2, q, ("ee", "small"), ("ee", "large")) for q in ("reach_generation",
                                                          "reach_robot_hours")),
+    *((2, q, (m, "small"), (m, "large")) for m in ("ee", "ce") for q in CENSORED),
     *((3, q, ("ee", "small"), ("ee", "large")) for q in ("partners_per_mated_life", "parents",
                                                          "parents_effective")),
     (3, "partners_per_mated_life", ("ce", "small"), ("ce", "large")),
@@ -800,6 +825,7 @@ TESTS = (
 )  # fmt: skip
 #: EE quantities whose trend over every N tests.csv gives (Spearman's rank correlation).
 TREND_QUESTIONS = {"batteries": 1, "matings": 1, "reach_generation": 2, "reach_robot_hours": 2,
+                   "reach_paper_generation": 2, "reach_paper_robot_hours": 2,
                    "partners_per_mated_life": 3, "parents_effective": 3, "completed": 5,
                    "deaths": 5}  # fmt: skip
 TRENDS = tuple(TREND_QUESTIONS)
@@ -856,6 +882,8 @@ def test_table(
     def values(method: str, n: int, quantity: str) -> np.ndarray:
         chosen = per_run[(per_run["method"] == method) & (per_run["n_robots"] == n)]
         array = chosen[quantity].to_numpy(dtype=float) if len(chosen) else np.zeros(0)
+        if quantity in CENSORED:
+            return np.where(np.isnan(array), np.inf, array)
         finite: np.ndarray = array[~np.isnan(array)]
         return finite
 
@@ -873,9 +901,11 @@ def test_table(
         })  # fmt: skip
     ee = per_run[per_run["method"] == "ee"]
     for quantity in TRENDS:
-        chosen = ee[~ee[quantity].isna()]
-        rho, p, kind = trend_test(chosen["n_robots"].to_numpy(float),
-                                  chosen[quantity].to_numpy(float))  # fmt: skip
+        chosen = ee if quantity in CENSORED else ee[~ee[quantity].isna()]
+        y = chosen[quantity].to_numpy(float)
+        if quantity in CENSORED:
+            y = np.where(np.isnan(y), np.inf, y)
+        rho, p, kind = trend_test(chosen["n_robots"].to_numpy(float), y)
         rows.append({
             "question": TREND_QUESTIONS[quantity], "quantity": quantity,
             "test": f"spearman over N {kind}", "a": "EE, every N", "b": "",

@@ -349,6 +349,17 @@ def test_the_analysis_of_published_runs_by_hand(
     # 90 % of it at generation 14 (4 of 5 generations: 80 %; 5 of 5: 100 %)
     assert (runs["reach_generation"] == 14).all()
     assert (runs["first_level"] == 0).all()  # generations 0-4 are all 0
+    # the paper colony's level is its cell's (N = 4, same method): EE 11, 90 % of it 9.9; CE 5
+    # (one run), 4.5. A trailing mean of 5 over a jump from 0 to b at generation 10 is
+    # b (g - 9) / 5 at generation g: EE N=4 (10-12) reaches 9.9 at 14, EE N=100 (20-22) at 12
+    # (3/5 x 20 = 12), CE N=4 (5) 4.5 at 14, CE N=100 (30-32) at 10 (30/5 = 6)
+    paper = runs.sort_index()
+    assert (paper.loc[(4, "ee"), "paper_level"] == 11.0).all()
+    assert (paper.loc[(100, "ce"), "paper_level"] == 5.0).all()
+    expected = {(4, "ee"): 14, (100, "ee"): 12, (4, "ce"): 14, (100, "ce"): 10}
+    for cell, generation in expected.items():
+        assert (paper.loc[cell, "reach_paper_generation"] == generation).all(), cell
+    assert (runs["reached_paper"] == 1).all()
     # generation 14 closed at world step 15,000: x 4 robots x 0.2 s = 3.33 robot-hours
     hours = runs["reach_robot_hours"]
     assert hours[(4, "ee", 0)] == pytest.approx(15_000 * 4 * 0.2 / 3600, rel=1e-5)
@@ -375,7 +386,8 @@ def test_the_tests_compare_the_study_sizes_even_before_their_runs_exist() -> Non
     per_run = pd.DataFrame({
         "method": ["ee", "ee", "ee", "ce"], "n_robots": [4, 4, 10, 4], "seed": [0, 1, 0, 0],
         **{q: [1.0, 2.0, 3.0, 4.0] for q in ("batteries", "matings", "completed", "deaths",
-            "reach_generation", "reach_robot_hours", "partners_per_mated_life", "parents",
+            "reach_generation", "reach_robot_hours", "reach_paper_generation",
+            "reach_paper_robot_hours", "partners_per_mated_life", "parents",
             "parents_effective")},
     })  # fmt: skip
     tests = study.test_table(per_run)
@@ -441,3 +453,21 @@ def test_the_walls_replay_the_last_generation_of_each_run(tmp_path: Path) -> Non
     table.to_csv(statistics, index=False)
     with pytest.raises(study.StudyError, match="the replay closed generation 1"):
         study.sample_walls(run_dir(out, "ee", 0, "n004"))
+
+
+def test_a_run_that_never_reaches_the_paper_level_is_censored_above_every_other() -> None:
+    per_run = pd.DataFrame({
+        "method": ["ee"] * 6, "n_robots": [4, 4, 4, 100, 100, 100], "seed": [0, 1, 2] * 2,
+        "reach_paper_generation": [10.0, 12.0, 14.0, math.nan, 30.0, math.nan],
+    })  # fmt: skip
+    for quantity in study.QUANTITIES:  # the other tests' quantities, unused here
+        if quantity not in per_run:
+            per_run[quantity] = 1.0
+    tests = study.test_table(per_run).set_index(["quantity", "a"])
+    row = tests.loc[("reach_paper_generation", "EE N=4")]
+    # every N=4 run reached it sooner than every N=100 run: U = 0 whichever way the two
+    # censored runs rank among themselves; the tie makes it the asymptotic test
+    assert row["statistic"] == 0 and row["n_b"] == 3 and row["mean_b"] == np.inf
+    assert row["test"] == "mann-whitney asymptotic"
+    trend = tests.loc[("reach_paper_generation", "EE, every N")]
+    assert trend["n_a"] == 6 and trend["statistic"] > 0
