@@ -866,6 +866,12 @@ def trend_test(x: np.ndarray, y: np.ndarray) -> tuple[float, float, str]:
     return float(result.statistic), float(result.pvalue), "exact" if exact else "permutation"
 
 
+def _finite_mean(values: np.ndarray) -> float:
+    """The mean of the finite values (a censored time is infinite); NaN without any."""
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if len(finite) else math.nan
+
+
 def test_table(
     per_run: pd.DataFrame, compared: tuple[int, int] = (min(CE_SIZES), max(CE_SIZES))
 ) -> pd.DataFrame:
@@ -894,9 +900,8 @@ def test_table(
         rows.append({
             "question": question, "quantity": quantity, "test": f"mann-whitney {test}",
             "a": f"{method_a.upper()} N={n_a}", "b": f"{method_b.upper()} N={n_b}",
-            "n_a": len(a), "n_b": len(b),
-            "mean_a": float(a.mean()) if len(a) else math.nan,
-            "mean_b": float(b.mean()) if len(b) else math.nan,
+            "n_a": len(a), "n_b": len(b), "mean_a": _finite_mean(a), "mean_b": _finite_mean(b),
+            "never_a": int(np.isinf(a).sum()), "never_b": int(np.isinf(b).sum()),
             "statistic": u, "p_value": p, "effect": effect,
         })  # fmt: skip
     ee = per_run[per_run["method"] == "ee"]
@@ -970,10 +975,13 @@ def _fmt(mean: float, std: float, digits: int = 2) -> str:
 def markdown(summary: pd.DataFrame, tests: pd.DataFrame, window: tuple[int, int]) -> str:
     """The summary and the tests as Markdown tables."""
     columns = (("batteries", 1), ("matings", 2), ("completed", 1), ("deaths", 1),
-               ("random_share", 2), ("reach_generation", 1), ("reach_robot_hours", 1),
+               ("random_share", 2), ("reach_generation", 1), ("reached_paper", 2),
+               ("reach_paper_generation", 1), ("reach_paper_robot_hours", 1),
                ("partners_per_mated_life", 2), ("parents_effective", 1))  # fmt: skip
-    heads = ("batteries", "matings", "completed", "deaths", "random newborns", "gen. to 90 %",
-             "robot-h to 90 %", "partners / mated life", "eff. parents")  # fmt: skip
+    heads = ("batteries", "matings", "completed", "deaths", "random newborns",
+             "gen. to 90 % of own cell", f"share reaching 90 % of N = {PAPER_ROBOTS}",
+             "gen. to it (those reaching)", "robot-h to it", "partners / mated life",
+             "eff. parents")  # fmt: skip
     lines = [f"Per-run means over generations {window[0]}-{window[1]}, mean ± std over runs:",
              "", "| N | agents/robot | method | runs | " + " | ".join(heads) + " |",
              "|" + " --- |" * (4 + len(heads))]  # fmt: skip
@@ -987,7 +995,8 @@ def markdown(summary: pd.DataFrame, tests: pd.DataFrame, window: tuple[int, int]
     for _, t in tests.iterrows():
         lines.append(
             f"| {t['question']} | {t['quantity']} | {t['test']} | {t['a']} | {t['b']} | "
-            f"{t['n_a']}/{t['n_b']} | {_num(t['mean_a'])} | {_num(t['mean_b'])} | "
+            f"{t['n_a']}/{t['n_b']} | {_censored(t['mean_a'], t['never_a'])} | "
+            f"{_censored(t['mean_b'], t['never_b'])} | "
             f"{_num(t['statistic'])} | {_num(t['p_value'], 2, 'g')} |"
         )
     return "\n".join(lines)
@@ -995,6 +1004,13 @@ def markdown(summary: pd.DataFrame, tests: pd.DataFrame, window: tuple[int, int]
 
 def _num(value: float, digits: int = 2, style: str = "f") -> str:
     return "–" if math.isnan(value) else f"{value:.{digits}{style}}"
+
+
+def _censored(mean: float, never: float) -> str:
+    """A mean over the runs that reached a level, and how many never did."""
+    if math.isnan(never) or not never:
+        return _num(mean)
+    return f"{_num(mean)} ({int(never)} never)"
 
 
 def _write_csv(table: pd.DataFrame, path: Path) -> Path:
