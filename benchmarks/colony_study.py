@@ -866,6 +866,15 @@ def trend_test(x: np.ndarray, y: np.ndarray) -> tuple[float, float, str]:
     return float(result.statistic), float(result.pvalue), "exact" if exact else "permutation"
 
 
+def _ranked(values: np.ndarray, quantity: str) -> np.ndarray:
+    """A quantity's per-run values for a rank test: a censored time (NaN: never reached) as
+    infinite, else the NaNs dropped."""
+    if quantity in CENSORED:
+        return np.where(np.isnan(values), np.inf, values)
+    kept: np.ndarray = values[~np.isnan(values)]
+    return kept
+
+
 def _finite_mean(values: np.ndarray) -> float:
     """The mean of the finite values (a censored time is infinite); NaN without any."""
     finite = values[np.isfinite(values)]
@@ -888,10 +897,7 @@ def test_table(
     def values(method: str, n: int, quantity: str) -> np.ndarray:
         chosen = per_run[(per_run["method"] == method) & (per_run["n_robots"] == n)]
         array = chosen[quantity].to_numpy(dtype=float) if len(chosen) else np.zeros(0)
-        if quantity in CENSORED:
-            return np.where(np.isnan(array), np.inf, array)
-        finite: np.ndarray = array[~np.isnan(array)]
-        return finite
+        return _ranked(array, quantity)
 
     for question, quantity, (method_a, which_a), (method_b, which_b) in TESTS:
         n_a, n_b = size[which_a], size[which_b]
@@ -906,15 +912,14 @@ def test_table(
         })  # fmt: skip
     ee = per_run[per_run["method"] == "ee"]
     for quantity in TRENDS:
-        chosen = ee if quantity in CENSORED else ee[~ee[quantity].isna()]
-        y = chosen[quantity].to_numpy(float)
-        if quantity in CENSORED:
-            y = np.where(np.isnan(y), np.inf, y)
-        rho, p, kind = trend_test(chosen["n_robots"].to_numpy(float), y)
+        y = ee[quantity].to_numpy(float)
+        kept = ~np.isnan(y) if quantity not in CENSORED else np.ones(len(y), dtype=bool)
+        rho, p, kind = trend_test(ee["n_robots"].to_numpy(float)[kept],
+                                  _ranked(y, quantity))  # fmt: skip
         rows.append({
             "question": TREND_QUESTIONS[quantity], "quantity": quantity,
             "test": f"spearman over N {kind}", "a": "EE, every N", "b": "",
-            "n_a": len(chosen), "n_b": 0, "mean_a": math.nan, "mean_b": math.nan,
+            "n_a": int(kept.sum()), "n_b": 0, "mean_a": math.nan, "mean_b": math.nan,
             "statistic": rho, "p_value": p, "effect": rho,
         })  # fmt: skip
     return pd.DataFrame(rows)
@@ -1131,7 +1136,8 @@ def sample_walls(path: Path, every: int = POSITION_EVERY) -> dict[str, Any]:
 def wall_table(spec: SweepSpec, out: Path, every: int = POSITION_EVERY) -> pd.DataFrame:
     """:func:`sample_walls` of every finished run of ``spec`` in ``out``, one row per run."""
     rows = []
-    for member in spec.runs:
+    members = sorted(spec.runs, key=lambda m: (n_robots_of(spec, m.cell), m.method != "ee", m.seed))
+    for member in members:
         path = run_dir(out, *member)
         if not run_finished(path):
             continue
@@ -1139,14 +1145,7 @@ def wall_table(spec: SweepSpec, out: Path, every: int = POSITION_EVERY) -> pd.Da
         n = n_robots_of(spec, member.cell)
         rows.append({"cell": member.cell, "n_robots": n, "method": member.method,
                      "seed": member.seed, **sample_walls(path, every)})  # fmt: skip
-    table = pd.DataFrame(rows)
-    if len(table):
-        table = table.sort_values(["n_robots", "method", "seed"], key=_method_first)
-    return table.reset_index(drop=True)
-
-
-def _method_first(column: pd.Series) -> pd.Series:
-    return column.map({"ee": 0, "ce": 1}) if column.name == "method" else column
+    return pd.DataFrame(rows)
 
 
 def walls_markdown(table: pd.DataFrame) -> str:
