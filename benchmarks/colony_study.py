@@ -971,7 +971,7 @@ def plot_study(runs: Sequence[PublishedRun], path: Path) -> Path:
     return path
 
 
-def _fmt(mean: float, std: float, digits: int = 2) -> str:
+def fmt_mean(mean: float, std: float, digits: int = 2) -> str:
     if math.isnan(mean):
         return "–"
     return f"{mean:.{digits}f}" + ("" if math.isnan(std) else f" ± {std:.{digits}f}")
@@ -991,7 +991,7 @@ def markdown(summary: pd.DataFrame, tests: pd.DataFrame, window: tuple[int, int]
              "", "| N | agents/robot | method | runs | " + " | ".join(heads) + " |",
              "|" + " --- |" * (4 + len(heads))]  # fmt: skip
     for _, row in summary.iterrows():
-        cells = [_fmt(row[c], row[f"{c}_std"], d) for c, d in columns]
+        cells = [fmt_mean(row[c], row[f"{c}_std"], d) for c, d in columns]
         lines.append(f"| {row['n_robots']} | {row['agents_per_robot']} | "
                      f"{str(row['method']).upper()} | {row['runs']} | " + " | ".join(cells)
                      + " |")  # fmt: skip
@@ -1018,7 +1018,7 @@ def _censored(mean: float, never: float) -> str:
     return f"{_num(mean)} ({int(never)} never)"
 
 
-def _write_csv(table: pd.DataFrame, path: Path) -> Path:
+def write_csv(table: pd.DataFrame, path: Path) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_output(path) as temp:
         table.to_csv(temp, index=False, float_format="%.6g")
@@ -1041,9 +1041,9 @@ def analyse(published: Path, figure: Path) -> tuple[list[Path], str]:
     summary = summary_table(per_run)
     tests = test_table(per_run)
     written = [
-        _write_csv(summary, published / "summary.csv"),
-        _write_csv(per_run, published / "runs.csv"),
-        _write_csv(tests, published / "tests.csv"),
+        write_csv(summary, published / "summary.csv"),
+        write_csv(per_run, published / "runs.csv"),
+        write_csv(tests, published / "tests.csv"),
         plot_study(runs, figure),
     ]
     return written, markdown(summary, tests, window)
@@ -1156,14 +1156,14 @@ def walls_markdown(table: pd.DataFrame) -> str:
              "random genome | of those, at the wall | the others at the wall | field at the "
              "wall | robots / field | robots running an agent |", "|" + " --- |" * 11]  # fmt: skip
     for (n, method), group in table.groupby(["n_robots", "method"], sort=False):
-        cells = [_fmt(group[c].mean(), group[c].std(), 3)
+        cells = [fmt_mean(group[c].mean(), group[c].std(), 3)
                  for c in ("robots_at_wall", "packs_at_wall", "random_genomes",
                            "random_at_wall", "others_at_wall")]  # fmt: skip
         ratio, active = group["robots_over_field"], group["active_robots"]
         lines.append(f"| {n} | {str(method).upper()} | {len(group)} | {' | '.join(cells)} | "
                      f"{group['field_at_wall'].iloc[0]:.3f} | "
-                     f"{_fmt(ratio.mean(), ratio.std(), 2)} | "
-                     f"{_fmt(active.mean(), active.std(), 3)} |")  # fmt: skip
+                     f"{fmt_mean(ratio.mean(), ratio.std(), 2)} | "
+                     f"{fmt_mean(active.mean(), active.std(), 3)} |")  # fmt: skip
     return "\n".join(lines)
 
 
@@ -1353,7 +1353,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except StudyError as err:
             print(f"{PROG}: {err}", file=sys.stderr)
             return 1
-        print(f"wrote {_write_csv(walls, args.published / WALLS_FILE)}")
+        print(f"wrote {write_csv(walls, args.published / WALLS_FILE)}")
         print(walls_markdown(walls))
     return 1 if failed else 0
 

@@ -1,0 +1,290 @@
+"""The colony study's swap: do larger colonies evolve worse genomes, or live in a harder world?
+
+The colony study (:mod:`benchmarks.colony_study`) finds that 100 agents on many robots capture
+fewer batteries per life after 60 generations than on the paper's 4. That can have two causes:
+the larger colony evolved worse controllers, or its world lets the same controllers capture
+fewer. This check separates them. For each seed and method run at both sizes (EE and CE, N = 4
+and N = 100), it takes the population each run ended with (the 100 genomes at its last
+checkpoint) and lets it live one generation in each of the two worlds:
+
+==============================  ==================  ====================
+genomes                         world N = 4         world N = 100
+==============================  ==================  ====================
+evolved on 4 robots             at home             away
+evolved on 100 robots           away                at home
+==============================  ==================  ====================
+
+Each evaluation is a fresh run of the world's cell (its ``run.json``: the study's settings for
+that N) with the run's seed and the chosen genomes as its initial population, robot-major, for
+one generation of the run's own method: the world is laid out as in that seed's run, every
+agent starts a new life, and the generation's statistics (batteries and matings per life of
+the agents that completed the task, completions, deaths) are the genomes' score there. Both
+populations of a seed meet the same world, so each comparison is paired by seed. Beside them
+``swap.csv`` repeats generation 0 of the study runs themselves, random genomes in the same
+worlds.
+
+    .venv/bin/python -m benchmarks.colony_swap --out runs/colony_scale [--workers 2]
+
+It needs the study's run directories (``--out``, for the checkpoints) and its published tables
+(``--published``, for the settings), takes about a thirtieth of the study's time, and writes
+``swap.csv`` into ``--published``. Every setting is checked before anything runs: a bad one
+exits with status 2 and one line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+# Run as a script, this file's directory would shadow the ``behaviours`` package: drop it.
+if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
+    sys.path.pop(0)
+
+from benchmarks.colony_study import (  # noqa: E402
+    SEEDS,
+    StudyError,
+    cell_name,
+    fmt_mean,
+    run_finished,
+    write_csv,
+)
+from evolution.lab.comparison import rank_test  # noqa: E402
+from evolution.lab.experiment import policies_for_identity, read_run_record  # noqa: E402
+from evolution.lab.sweep import parse_seeds, run_dir  # noqa: E402
+from evolution.runner.checkpoints import latest_checkpoint  # noqa: E402
+from evolution.runner.config import run_config_from_record  # noqa: E402
+
+PROG = "colony_swap"
+#: The two sizes whose populations trade worlds: the paper's colony and one robot per agent.
+SIZES = (4, 100)
+METHODS = ("ee", "ce")
+SWAP_FILE = "swap.csv"
+#: Generation 0's columns each evaluation reports (``statistics.csv`` names).
+COLUMNS = ("completed", "batteries_mean", "matings_mean", "deaths", "new_random",
+           "batteries_full_life_mean", "closed_at_step")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """One population living one generation in one world.
+
+    Attributes:
+        method: the study's method (the runs' and the evaluation's).
+        seed: the runs' seed, and the evaluation's.
+        genomes: the directory of the run whose final population lives here.
+        world: the published directory of the run whose settings (its cell) make the world.
+    """
+
+    method: str
+    seed: int
+    genomes: Path
+    world: Path
+
+
+def plan(
+    out: Path, published: Path, seeds: Sequence[int], sizes: Sequence[int] = SIZES
+) -> list[Evaluation]:
+    """Every evaluation, genomes' size-major within each method and seed.
+
+    Raises:
+        StudyError: a run the swap needs has not finished in ``out``, or is not published.
+    """
+    evaluations = []
+    for method in METHODS:
+        for seed in seeds:
+            runs = {n: run_dir(out, method, seed, cell_name(n)) for n in sizes}
+            worlds = {n: run_dir(published, method, seed, cell_name(n)) for n in sizes}
+            for n in sizes:
+                if not run_finished(runs[n]):
+                    raise StudyError(f"--out: {runs[n]} has not finished; run the study first")
+                if not (worlds[n] / "run.json").is_file():
+                    raise StudyError(f"--published: no {worlds[n] / 'run.json'}")
+            evaluations += [Evaluation(method, seed, runs[g], worlds[w])
+                            for g in sizes for w in sizes]  # fmt: skip
+    return evaluations
+
+
+def final_population(path: Path) -> list[Any]:
+    """The genomes, robot-major, at the last checkpoint of the finished run in ``path``: the
+    population the run ended with."""
+    from evolution.runner import EvolutionRunner
+
+    statistics = pd.read_csv(path / "statistics.csv")
+    checkpoint = latest_checkpoint(path / "checkpoints")
+    expected = f"gen_{len(statistics):05d}.ckpt"
+    if checkpoint is None or checkpoint.name != expected:
+        raise StudyError(f"{path}: no checkpoint {expected} of the population it ended with")
+    record = read_run_record(path)
+    with EvolutionRunner.from_checkpoint(
+        checkpoint, policies_for_identity(record["policies"])
+    ) as runner:
+        return runner.scheduler.population()
+
+
+def evaluate(evaluation: Evaluation) -> dict[str, Any]:
+    """Generation 0 of ``evaluation``'s world with its genomes, as one row."""
+    from evolution.runner import EvolutionRunner
+
+    record = read_run_record(evaluation.world)
+    config = run_config_from_record(record["config"])
+    genomes = final_population(evaluation.genomes)
+    if config.method != evaluation.method or len(genomes) != config.evolution.population_size:
+        raise StudyError(f"{evaluation.world}: not a {evaluation.method} run of "
+                         f"{len(genomes)} agents")  # fmt: skip
+    policies = policies_for_identity(record["policies"])
+    with EvolutionRunner(config, evaluation.seed, policies, initial_genomes=genomes) as runner:
+        table = runner.run(1)
+        steps = runner.steps
+    row = table.iloc[0]
+    return {
+        "method": evaluation.method, "seed": evaluation.seed,
+        "genomes": evaluation.genomes.parent.name, "world": evaluation.world.parent.name,
+        **{c: row[c] for c in COLUMNS}, "robot_steps": steps * config.evolution.n_robots,
+    }  # fmt: skip
+
+
+def random_rows(
+    published: Path, seeds: Sequence[int], sizes: Sequence[int] = SIZES
+) -> list[dict[str, Any]]:
+    """Generation 0 of the study runs themselves: random genomes in the same worlds."""
+    rows = []
+    for method in METHODS:
+        for seed in seeds:
+            for n in sizes:
+                path = run_dir(published, method, seed, cell_name(n))
+                table = pd.read_csv(path / "statistics.csv")
+                row = table.iloc[0]
+                steps = int(row["closed_at_step"]) * n
+                rows.append({"method": method, "seed": seed, "genomes": "random",
+                             "world": cell_name(n), **{c: row[c] for c in COLUMNS},
+                             "robot_steps": steps})  # fmt: skip
+    return rows
+
+
+def swap_table(evaluations: Sequence[Evaluation], workers: int) -> pd.DataFrame:
+    """:func:`evaluate` of every evaluation, in order, on ``workers`` processes (the rows do
+    not depend on how many)."""
+    if workers == 1:
+        rows = [evaluate(e) for e in evaluations]
+    else:
+        with ProcessPoolExecutor(workers) as pool:
+            rows = list(pool.map(evaluate, evaluations))
+    return pd.DataFrame(rows)
+
+
+def comparisons(sizes: Sequence[int] = SIZES) -> list[tuple[str, tuple[str, str], tuple[str, str]]]:
+    """The comparisons tested, per method: (name, rows a, rows b), rows as (genomes, world):
+    the two populations in each world, and each population in the two worlds."""
+    small, large = (cell_name(n) for n in sizes)
+    ns = dict(zip((small, large), sizes, strict=True))
+    return [
+        *((f"genomes, in the N = {ns[w]} world", (small, w), (large, w)) for w in (large, small)),
+        *((f"world, N = {ns[g]} genomes", (g, small), (g, large)) for g in (small, large)),
+    ]
+
+
+def _values(table: pd.DataFrame, key: tuple[str, str], column: str) -> np.ndarray:
+    """The finite values of ``column`` in the rows of ``key`` = (genomes, world)."""
+    chosen = table[(table["genomes"] == key[0]) & (table["world"] == key[1])]
+    values = chosen[column].to_numpy(dtype=float)
+    finite: np.ndarray = values[np.isfinite(values)]
+    return finite
+
+
+def swap_tests(table: pd.DataFrame, sizes: Sequence[int] = SIZES) -> pd.DataFrame:
+    """Two-sided Mann-Whitney U of batteries, matings and completions over seeds, for each of
+    :func:`comparisons` and method."""
+    rows = []
+    for method in METHODS:
+        own = table[table["method"] == method]
+        for name, a, b in comparisons(sizes):
+            for column in ("batteries_mean", "matings_mean", "completed"):
+                first, second = (_values(own, key, column) for key in (a, b))
+                u, p, effect, test = rank_test(first, second)
+                rows.append({"method": method, "comparison": name, "quantity": column,
+                             "a": "/".join(a), "b": "/".join(b), "n_a": len(first),
+                             "n_b": len(second), "mean_a": first.mean() if len(first) else np.nan,
+                             "mean_b": second.mean() if len(second) else np.nan, "u": u,
+                             "p_value": p, "effect": effect, "test": test})  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def swap_markdown(table: pd.DataFrame, tests: pd.DataFrame) -> str:
+    """Per method, genomes and world: mean ± std over seeds, then the tests."""
+    lines = ["Generation 0 of each population in each world (mean ± std over seeds):", "",
+             "| method | genomes evolved on | world | seeds | batteries | matings | completed | "
+             "deaths | random newborns |", "|" + " --- |" * 9]  # fmt: skip
+    for (method, genomes, world), g in table.groupby(["method", "genomes", "world"], sort=False):
+        cells = [fmt_mean(g[c].mean(), g[c].std(), d)
+                 for c, d in (("batteries_mean", 2), ("matings_mean", 2), ("completed", 1),
+                              ("deaths", 1), ("new_random", 1))]  # fmt: skip
+        lines.append(f"| {str(method).upper()} | {genomes} | {world} | {len(g)} | "
+                     + " | ".join(cells) + " |")  # fmt: skip
+    lines += ["", "| method | comparison | quantity | a | b | mean a | mean b | U | p |",
+              "|" + " --- |" * 9]  # fmt: skip
+    for _, t in tests.iterrows():
+        lines.append(f"| {str(t['method']).upper()} | {t['comparison']} | {t['quantity']} | "
+                     f"{t['a']} | {t['b']} | {t['mean_a']:.2f} | {t['mean_b']:.2f} | "
+                     f"{t['u']:.1f} | {t['p_value']:.3g} |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def parse_sizes(text: str) -> tuple[int, int]:
+    """``--sizes``: two distinct robot counts, smaller first.
+
+    Raises:
+        StudyError: not two distinct positive integers.
+    """
+    try:
+        sizes = tuple(sorted(int(t) for t in text.split(",")))
+    except ValueError:
+        sizes = ()
+    if len(sizes) != 2 or sizes[0] == sizes[1] or sizes[0] < 1:
+        raise StudyError(f"--sizes must be two distinct robot counts >= 1, got {text!r}")
+    return sizes[0], sizes[1]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path("runs/colony_scale"),
+                        help="the colony study's run directories")  # fmt: skip
+    parser.add_argument("--published", type=Path, default=Path("results/colony_scale"),
+                        help="the study's published tables; swap.csv goes here")  # fmt: skip
+    parser.add_argument("--seeds", default=SEEDS)
+    parser.add_argument(
+        "--sizes",
+        default=",".join(map(str, SIZES)),
+        help="the two robot counts whose populations trade worlds",
+    )
+    parser.add_argument("--workers", type=int, default=2, help="evaluations at a time")
+    args = parser.parse_args(argv)
+    try:
+        if isinstance(args.workers, bool) or args.workers < 1:
+            raise StudyError(f"--workers must be an integer >= 1, got {args.workers}")
+        seeds = parse_seeds(args.seeds)
+        sizes = parse_sizes(args.sizes)
+        evaluations = plan(args.out, args.published, seeds, sizes)
+    except ValueError as err:  # StudyError too: one line, status 2, before anything runs
+        print(f"{PROG}: error: {str(err).splitlines()[0]}", file=sys.stderr)
+        return 2
+    print(f"{PROG}: {len(evaluations)} evaluations of one generation", flush=True)
+    table = pd.concat([swap_table(evaluations, args.workers),
+                       pd.DataFrame(random_rows(args.published, seeds, sizes))],
+                      ignore_index=True)  # fmt: skip
+    tests = swap_tests(table, sizes)
+    print(f"wrote {write_csv(table, args.published / SWAP_FILE)}")
+    print(f"wrote {write_csv(tests, args.published / 'swap_tests.csv')}")
+    print(swap_markdown(table, tests))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,102 @@
+"""The colony study's swap: each size's final population lives one generation in each world."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from benchmarks import colony_study as study
+from benchmarks import colony_swap as swap
+from evolution.lab.sweep import run_dir
+
+#: Two and four robots, eight agents, EE and CE at both, short lives: the study of
+#: tests/test_colony_study.py with CE at both sizes.
+TINY = ["--sizes", "2,4", "--ce-sizes", "2,4", "--population", "8", "--seeds", "0",
+        "--generations", "2", "--set", "evolution.lifetime_steps=40",
+        "--set", "evolution.time_sharing_steps=10", "--workers", "1", "--no-estimate"]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def tiny_study(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("swap")
+    out, published = root / "runs", root / "results"
+    assert study.main(["--run", "--out", str(out), "--published", str(published),
+                       "--figure", str(root / "figure.png"), *TINY]) == 0  # fmt: skip
+    return out, published
+
+
+def test_the_comparisons_pair_each_population_and_each_world() -> None:
+    assert swap.comparisons((4, 100)) == [
+        ("genomes, in the N = 100 world", ("n004", "n100"), ("n100", "n100")),
+        ("genomes, in the N = 4 world", ("n004", "n004"), ("n100", "n004")),
+        ("world, N = 4 genomes", ("n004", "n004"), ("n004", "n100")),
+        ("world, N = 100 genomes", ("n100", "n004"), ("n100", "n100")),
+    ]
+
+
+@pytest.mark.parametrize("sizes", ["4", "4,4", "0,4", "4,a", "2,4,10"])
+def test_bad_sizes_are_refused(sizes: str) -> None:
+    with pytest.raises(study.StudyError, match="--sizes must be two distinct"):
+        swap.parse_sizes(sizes)
+
+
+def test_each_population_lives_a_generation_in_each_world(
+    tiny_study: tuple[Path, Path], tmp_path: Path
+) -> None:
+    out, published = tiny_study
+    results = tmp_path / "results"
+    for path in published.glob("n00*/*"):  # the published tables, without the analysis
+        target = results / path.relative_to(published)
+        target.mkdir(parents=True)
+        for name in ("run.json", "statistics.csv"):
+            (target / name).write_bytes((path / name).read_bytes())
+    args = ["--out", str(out), "--published", str(results), "--seeds", "0", "--sizes", "2,4"]
+    assert swap.main([*args, "--workers", "1"]) == 0
+    table = pd.read_csv(results / swap.SWAP_FILE)
+    assert table[["method", "genomes", "world"]].values.tolist() == [
+        [method, genomes, world]
+        for method in ("ee", "ce")
+        for genomes, world in (("n002", "n002"), ("n002", "n004"), ("n004", "n002"),
+                               ("n004", "n004"))  # fmt: skip
+    ] + [[method, "random", world] for method in ("ee", "ce") for world in ("n002", "n004")]
+    # the world's robots step the generation
+    robots = table["world"].map({"n002": 2, "n004": 4})
+    assert (table["robot_steps"] == table["closed_at_step"] * robots).all()
+    assert ((table["completed"] >= 0) & (table["completed"] <= 8)).all()
+    # the random rows are the study runs' own generation 0
+    for _, row in table[table["genomes"] == "random"].iterrows():
+        first = pd.read_csv(run_dir(published, row["method"], 0, row["world"]) / "statistics.csv")
+        assert row["closed_at_step"] == first.loc[0, "closed_at_step"]
+        assert row["deaths"] == first.loc[0, "deaths"]
+    # the evaluations start from the runs' final populations: the evolved genomes at home
+    # are not the random ones the run started with
+    home = table[(table["genomes"] == table["world"])].set_index(["method", "world"])
+    random = table[table["genomes"] == "random"].set_index(["method", "world"])
+    columns = list(swap.COLUMNS[:4])
+    assert not home[columns].equals(random[columns])
+    population = swap.final_population(run_dir(out, "ee", 0, "n004"))
+    assert len(population) == 8
+    # the same rows on two workers
+    evaluations = swap.plan(out, results, [0], (2, 4))[:2]
+    pd.testing.assert_frame_equal(
+        swap.swap_table(evaluations, 2), table.iloc[:2].reset_index(drop=True),
+        check_dtype=False,
+    )  # fmt: skip
+    tests = pd.read_csv(results / "swap_tests.csv")
+    assert len(tests) == 2 * 4 * 3 and set(tests["n_a"]) == {1}
+
+
+def test_a_missing_run_exits_2_before_anything_is_written(
+    tiny_study: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out, published = tiny_study
+    args = ["--out", str(out), "--published", str(tmp_path / "results"), "--seeds", "0"]
+    assert swap.main([*args, "--sizes", "2,4"]) == 2
+    assert "--published: no" in capsys.readouterr().err
+    assert swap.main(["--out", str(out), "--published", str(published), "--seeds", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "n100" in err and "has not finished" in err and len(err.splitlines()) == 1
+    assert swap.main([*args, "--sizes", "2,4", "--workers", "0"]) == 2
+    assert not (tmp_path / "results").exists()
