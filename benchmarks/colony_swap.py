@@ -14,6 +14,10 @@ evolved on 4 robots             at home             away
 evolved on 100 robots           away                at home
 ==============================  ==================  ====================
 
+The smaller size's EE population also lives a generation in the worlds of the study's other
+sizes (10, 25 and 50 robots, time-sharing 10, 4 and 2 agents each in larger fields): if it
+does worse there too, what costs it is the larger field, not the end of time sharing.
+
 Each evaluation is a fresh run of the world's cell (its ``run.json``: the study's settings for
 that N) with the run's seed and the chosen genomes as its initial population, robot-major, for
 one generation of the run's own method: the world is laid out as in that seed's run, every
@@ -48,6 +52,7 @@ import pandas as pd
 if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
     sys.path.pop(0)
 
+from benchmarks import colony_study  # noqa: E402
 from benchmarks.colony_study import (  # noqa: E402
     SEEDS,
     StudyError,
@@ -65,6 +70,8 @@ from evolution.runner.config import run_config_from_record  # noqa: E402
 PROG = "colony_swap"
 #: The two sizes whose populations trade worlds: the paper's colony and one robot per agent.
 SIZES = (4, 100)
+#: The study's other sizes: the smaller size's EE population also lives in their worlds.
+BETWEEN = tuple(n for n in colony_study.SIZES if n not in SIZES)
 METHODS = ("ee", "ce")
 SWAP_FILE = "swap.csv"
 #: Generation 0's columns each evaluation reports (``statistics.csv`` names).
@@ -90,25 +97,41 @@ class Evaluation:
 
 
 def plan(
-    out: Path, published: Path, seeds: Sequence[int], sizes: Sequence[int] = SIZES
+    out: Path,
+    published: Path,
+    seeds: Sequence[int],
+    sizes: Sequence[int] = SIZES,
+    between: Sequence[int] = (),
 ) -> list[Evaluation]:
-    """Every evaluation, genomes' size-major within each method and seed.
+    """Every evaluation: per method and seed, each of the two ``sizes``' final populations in
+    each of their worlds (genomes' size-major), then, for EE, the smaller size's population in
+    the world of each of ``between`` (the study's other sizes, run with EE only).
 
     Raises:
         StudyError: a run the swap needs has not finished in ``out``, or is not published.
     """
+
+    def finished_run(method: str, seed: int, n: int) -> Path:
+        path = run_dir(out, method, seed, cell_name(n))
+        if not run_finished(path):
+            raise StudyError(f"--out: {path} has not finished; run the study first")
+        return path
+
+    def world(method: str, seed: int, n: int) -> Path:
+        path = run_dir(published, method, seed, cell_name(n))
+        if not (path / "run.json").is_file():
+            raise StudyError(f"--published: no {path / 'run.json'}")
+        return path
+
     evaluations = []
     for method in METHODS:
         for seed in seeds:
-            runs = {n: run_dir(out, method, seed, cell_name(n)) for n in sizes}
-            worlds = {n: run_dir(published, method, seed, cell_name(n)) for n in sizes}
-            for n in sizes:
-                if not run_finished(runs[n]):
-                    raise StudyError(f"--out: {runs[n]} has not finished; run the study first")
-                if not (worlds[n] / "run.json").is_file():
-                    raise StudyError(f"--published: no {worlds[n] / 'run.json'}")
-            evaluations += [Evaluation(method, seed, runs[g], worlds[w])
+            runs = {n: finished_run(method, seed, n) for n in sizes}
+            evaluations += [Evaluation(method, seed, runs[g], world(method, seed, w))
                             for g in sizes for w in sizes]  # fmt: skip
+            if method == "ee":
+                evaluations += [Evaluation(method, seed, runs[sizes[0]], world(method, seed, n))
+                                for n in between]  # fmt: skip
     return evaluations
 
 
@@ -252,6 +275,21 @@ def parse_sizes(text: str) -> tuple[int, int]:
     return sizes[0], sizes[1]
 
 
+def parse_between(text: str, sizes: Sequence[int]) -> tuple[int, ...]:
+    """``--between``: robot counts other than ``sizes`` ('' for none).
+
+    Raises:
+        StudyError: not positive integers, or one of ``sizes``.
+    """
+    try:
+        between = tuple(int(t) for t in text.split(",")) if text.strip() else ()
+    except ValueError:
+        between = (0,)
+    if any(n < 1 or n in sizes for n in between):
+        raise StudyError(f"--between must be robot counts >= 1 other than --sizes, got {text!r}")
+    return between
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("runs/colony_scale"),
@@ -264,6 +302,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         default=",".join(map(str, SIZES)),
         help="the two robot counts whose populations trade worlds",
     )
+    parser.add_argument("--between", default=",".join(map(str, BETWEEN)),
+                        help="robot counts whose EE worlds the smaller size's population "
+                        "also lives in ('' for none)")  # fmt: skip
     parser.add_argument("--workers", type=int, default=2, help="evaluations at a time")
     args = parser.parse_args(argv)
     try:
@@ -271,7 +312,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise StudyError(f"--workers must be an integer >= 1, got {args.workers}")
         seeds = parse_seeds(args.seeds)
         sizes = parse_sizes(args.sizes)
-        evaluations = plan(args.out, args.published, seeds, sizes)
+        between = parse_between(args.between, sizes)
+        evaluations = plan(args.out, args.published, seeds, sizes, between)
     except ValueError as err:  # StudyError too: one line, status 2, before anything runs
         print(f"{PROG}: error: {str(err).splitlines()[0]}", file=sys.stderr)
         return 2

@@ -11,9 +11,9 @@ from benchmarks import colony_study as study
 from benchmarks import colony_swap as swap
 from evolution.lab.sweep import run_dir
 
-#: Two and four robots, eight agents, EE and CE at both, short lives: the study of
-#: tests/test_colony_study.py with CE at both sizes.
-TINY = ["--sizes", "2,4", "--ce-sizes", "2,4", "--population", "8", "--seeds", "0",
+#: Two, four and eight robots, eight agents, EE at each and CE at 2 and 8, short lives: the
+#: study of tests/test_colony_study.py with one more size and CE at both ends.
+TINY = ["--sizes", "2,4,8", "--ce-sizes", "2,8", "--population", "8", "--seeds", "0",
         "--generations", "2", "--set", "evolution.lifetime_steps=40",
         "--set", "evolution.time_sharing_steps=10", "--workers", "1", "--no-estimate"]  # fmt: skip
 
@@ -52,17 +52,18 @@ def test_each_population_lives_a_generation_in_each_world(
         target.mkdir(parents=True)
         for name in ("run.json", "statistics.csv"):
             (target / name).write_bytes((path / name).read_bytes())
-    args = ["--out", str(out), "--published", str(results), "--seeds", "0", "--sizes", "2,4"]
+    args = ["--out", str(out), "--published", str(results), "--seeds", "0", "--sizes", "2,8",
+            "--between", "4"]  # fmt: skip
     assert swap.main([*args, "--workers", "1"]) == 0
     table = pd.read_csv(results / swap.SWAP_FILE)
+    pairs = [("n002", "n002"), ("n002", "n008"), ("n008", "n002"), ("n008", "n008")]
     assert table[["method", "genomes", "world"]].values.tolist() == [
-        [method, genomes, world]
-        for method in ("ee", "ce")
-        for genomes, world in (("n002", "n002"), ("n002", "n004"), ("n004", "n002"),
-                               ("n004", "n004"))  # fmt: skip
-    ] + [[method, "random", world] for method in ("ee", "ce") for world in ("n002", "n004")]
+        ["ee", *pair] for pair in [*pairs, ("n002", "n004")]
+    ] + [["ce", *pair] for pair in pairs] + [
+        [method, "random", world] for method in ("ee", "ce") for world in ("n002", "n008")
+    ]
     # the world's robots step the generation
-    robots = table["world"].map({"n002": 2, "n004": 4})
+    robots = table["world"].map({"n002": 2, "n004": 4, "n008": 8})
     assert (table["robot_steps"] == table["closed_at_step"] * robots).all()
     assert ((table["completed"] >= 0) & (table["completed"] <= 8)).all()
     # the random rows are the study runs' own generation 0
@@ -76,16 +77,17 @@ def test_each_population_lives_a_generation_in_each_world(
     random = table[table["genomes"] == "random"].set_index(["method", "world"])
     columns = list(swap.COLUMNS[:4])
     assert not home[columns].equals(random[columns])
-    population = swap.final_population(run_dir(out, "ee", 0, "n004"))
+    population = swap.final_population(run_dir(out, "ee", 0, "n008"))
     assert len(population) == 8
     # the same rows on two workers
-    evaluations = swap.plan(out, results, [0], (2, 4))[:2]
+    evaluations = swap.plan(out, results, [0], (2, 8))[:2]
     pd.testing.assert_frame_equal(
         swap.swap_table(evaluations, 2), table.iloc[:2].reset_index(drop=True),
         check_dtype=False,
     )  # fmt: skip
     tests = pd.read_csv(results / "swap_tests.csv")
-    assert len(tests) == 2 * 4 * 3 and set(tests["n_a"]) == {1}
+    assert len(tests) == 2 * 4 * 3  # a seed each (none where no agent completed the task)
+    assert set(tests["n_a"]) <= {0, 1} and set(tests["n_b"]) <= {0, 1}
 
 
 def test_a_missing_run_exits_2_before_anything_is_written(
@@ -93,10 +95,12 @@ def test_a_missing_run_exits_2_before_anything_is_written(
 ) -> None:
     out, published = tiny_study
     args = ["--out", str(out), "--published", str(tmp_path / "results"), "--seeds", "0"]
-    assert swap.main([*args, "--sizes", "2,4"]) == 2
+    assert swap.main([*args, "--sizes", "2,8", "--between", "4"]) == 2
     assert "--published: no" in capsys.readouterr().err
     assert swap.main(["--out", str(out), "--published", str(published), "--seeds", "0"]) == 2
     err = capsys.readouterr().err
     assert "n100" in err and "has not finished" in err and len(err.splitlines()) == 1
-    assert swap.main([*args, "--sizes", "2,4", "--workers", "0"]) == 2
+    assert swap.main([*args, "--sizes", "2,8", "--between", "8"]) == 2
+    assert "--between must be" in capsys.readouterr().err
+    assert swap.main([*args, "--sizes", "2,8", "--workers", "0"]) == 2
     assert not (tmp_path / "results").exists()
