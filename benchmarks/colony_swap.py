@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -192,14 +193,25 @@ def random_rows(
     return rows
 
 
-def swap_table(evaluations: Sequence[Evaluation], workers: int) -> pd.DataFrame:
+def swap_table(
+    evaluations: Sequence[Evaluation], workers: int, progress: bool = False
+) -> pd.DataFrame:
     """:func:`evaluate` of every evaluation, in order, on ``workers`` processes (the rows do
-    not depend on how many)."""
+    not depend on how many); with ``progress``, a line as each one finishes."""
+    start = time.monotonic()
+
+    def done(k: int, row: dict[str, Any]) -> dict[str, Any]:
+        if progress:
+            print(f"{PROG}: {k}/{len(evaluations)} {row['method']} seed {row['seed']}: "
+                  f"{row['genomes']} genomes in the {row['world']} world, "
+                  f"{time.monotonic() - start:.0f} s", flush=True)  # fmt: skip
+        return row
+
     if workers == 1:
-        rows = [evaluate(e) for e in evaluations]
+        rows = [done(k, evaluate(e)) for k, e in enumerate(evaluations, 1)]
     else:
         with ProcessPoolExecutor(workers) as pool:
-            rows = list(pool.map(evaluate, evaluations))
+            rows = [done(k, r) for k, r in enumerate(pool.map(evaluate, evaluations), 1)]
     return pd.DataFrame(rows)
 
 
@@ -318,7 +330,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: error: {str(err).splitlines()[0]}", file=sys.stderr)
         return 2
     print(f"{PROG}: {len(evaluations)} evaluations of one generation", flush=True)
-    table = pd.concat([swap_table(evaluations, args.workers),
+    table = pd.concat([swap_table(evaluations, args.workers, progress=True),
                        pd.DataFrame(random_rows(args.published, seeds, sizes))],
                       ignore_index=True)  # fmt: skip
     tests = swap_tests(table, sizes)
