@@ -30,14 +30,16 @@ worlds.
     .venv/bin/python -m benchmarks.colony_swap --out runs/colony_scale [--workers 2]
 
 It needs the study's run directories (``--out``, for the checkpoints) and its published tables
-(``--published``, for the settings), takes about a thirtieth of the study's time, and writes
-``swap.csv`` into ``--published``. Every setting is checked before anything runs: a bad one
-exits with status 2 and one line.
+(``--published``, for the settings), takes about a twentieth of the study's time, and writes
+``swap.csv`` and ``swap_tests.csv`` into ``--published``. Each evaluation's row is kept in
+``--out/swap/`` as it finishes, so the same command resumes a swap cut short. Every setting
+is checked before anything runs: a bad one exits with status 2 and one line.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections.abc import Sequence
@@ -62,10 +64,16 @@ from benchmarks.colony_study import (  # noqa: E402
     run_finished,
     write_csv,
 )
+from cyber_rodent.atomic import write_text  # noqa: E402
 from evolution.lab.comparison import rank_test  # noqa: E402
 from evolution.lab.experiment import policies_for_identity, read_run_record  # noqa: E402
 from evolution.lab.sweep import parse_seeds, run_dir  # noqa: E402
-from evolution.runner.checkpoints import latest_checkpoint  # noqa: E402
+from evolution.runner.checkpoints import (  # noqa: E402
+    genomes_identity,
+    latest_checkpoint,
+    policy_identity,
+    run_fingerprint,
+)
 from evolution.runner.config import run_config_from_record  # noqa: E402
 
 PROG = "colony_swap"
@@ -75,6 +83,8 @@ SIZES = (4, 100)
 BETWEEN = tuple(n for n in colony_study.SIZES if n not in SIZES)
 METHODS = ("ee", "ce")
 SWAP_FILE = "swap.csv"
+#: Where each evaluation's row is kept, under ``--out``.
+CACHE = "swap"
 #: Generation 0's columns each evaluation reports (``statistics.csv`` names).
 COLUMNS = ("completed", "batteries_mean", "matings_mean", "deaths", "new_random",
            "batteries_full_life_mean", "closed_at_step")  # fmt: skip
@@ -89,12 +99,20 @@ class Evaluation:
         seed: the runs' seed, and the evaluation's.
         genomes: the directory of the run whose final population lives here.
         world: the published directory of the run whose settings (its cell) make the world.
+        cache: where its row is kept once measured (None: nowhere).
     """
 
     method: str
     seed: int
     genomes: Path
     world: Path
+    cache: Path | None = None
+
+    @property
+    def name(self) -> str:
+        """``ee-seed003-n004-in-n100``."""
+        return (f"{self.method}-seed{self.seed:03d}-{self.genomes.parent.name}-in-"
+                f"{self.world.parent.name}")  # fmt: skip
 
 
 def plan(
@@ -103,6 +121,7 @@ def plan(
     seeds: Sequence[int],
     sizes: Sequence[int] = SIZES,
     between: Sequence[int] = (),
+    cache: Path | None = None,
 ) -> list[Evaluation]:
     """Every evaluation: per method and seed, each of the two ``sizes``' final populations in
     each of their worlds (genomes' size-major), then, for EE, the smaller size's population in
@@ -128,11 +147,11 @@ def plan(
     for method in METHODS:
         for seed in seeds:
             runs = {n: finished_run(method, seed, n) for n in sizes}
-            evaluations += [Evaluation(method, seed, runs[g], world(method, seed, w))
+            evaluations += [Evaluation(method, seed, runs[g], world(method, seed, w), cache)
                             for g in sizes for w in sizes]  # fmt: skip
             if method == "ee":
-                evaluations += [Evaluation(method, seed, runs[sizes[0]], world(method, seed, n))
-                                for n in between]  # fmt: skip
+                evaluations += [Evaluation(method, seed, runs[sizes[0]], world(method, seed, n),
+                                           cache) for n in between]  # fmt: skip
     return evaluations
 
 
@@ -154,7 +173,13 @@ def final_population(path: Path) -> list[Any]:
 
 
 def evaluate(evaluation: Evaluation) -> dict[str, Any]:
-    """Generation 0 of ``evaluation``'s world with its genomes, as one row."""
+    """Generation 0 of ``evaluation``'s world with its genomes, as one row.
+
+    With a ``cache`` the row is kept there, under the evaluation's fingerprint (its settings,
+    seed, behaviours and genomes: :func:`~evolution.runner.checkpoints.run_fingerprint`), and
+    a later call with the same fingerprint reads it back instead of running again: a swap cut
+    short resumes where it stopped.
+    """
     from evolution.runner import EvolutionRunner
 
     record = read_run_record(evaluation.world)
@@ -164,15 +189,28 @@ def evaluate(evaluation: Evaluation) -> dict[str, Any]:
         raise StudyError(f"{evaluation.world}: not a {evaluation.method} run of "
                          f"{len(genomes)} agents")  # fmt: skip
     policies = policies_for_identity(record["policies"])
+    fingerprint = run_fingerprint(
+        config, evaluation.seed, policy_identity(policies), genomes_identity(genomes)
+    )
+    kept = None if evaluation.cache is None else evaluation.cache / f"{evaluation.name}.json"
+    if kept is not None and kept.is_file():
+        stored = json.loads(kept.read_text())
+        if stored.get("fingerprint") == fingerprint:
+            return dict(stored["row"])
     with EvolutionRunner(config, evaluation.seed, policies, initial_genomes=genomes) as runner:
         table = runner.run(1)
         steps = runner.steps
-    row = table.iloc[0]
-    return {
+    first = table.iloc[0]
+    row = {
         "method": evaluation.method, "seed": evaluation.seed,
         "genomes": evaluation.genomes.parent.name, "world": evaluation.world.parent.name,
-        **{c: row[c] for c in COLUMNS}, "robot_steps": steps * config.evolution.n_robots,
+        **{c: np.asarray(first[c]).item() for c in COLUMNS},
+        "robot_steps": steps * config.evolution.n_robots,
     }  # fmt: skip
+    if kept is not None:
+        kept.parent.mkdir(parents=True, exist_ok=True)
+        write_text(kept, json.dumps({"fingerprint": fingerprint, "row": row}, indent=1) + "\n")
+    return row
 
 
 def random_rows(
@@ -325,7 +363,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         seeds = parse_seeds(args.seeds)
         sizes = parse_sizes(args.sizes)
         between = parse_between(args.between, sizes)
-        evaluations = plan(args.out, args.published, seeds, sizes, between)
+        evaluations = plan(args.out, args.published, seeds, sizes, between, args.out / CACHE)
     except ValueError as err:  # StudyError too: one line, status 2, before anything runs
         print(f"{PROG}: error: {str(err).splitlines()[0]}", file=sys.stderr)
         return 2

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pandas as pd
@@ -10,6 +11,7 @@ import pytest
 from benchmarks import colony_study as study
 from benchmarks import colony_swap as swap
 from evolution.lab.sweep import run_dir
+from evolution.runner import EvolutionRunner
 
 #: Two, four and eight robots, eight agents, EE at each and CE at 2 and 8, short lives: the
 #: study of tests/test_colony_study.py with one more size and CE at both ends.
@@ -43,7 +45,7 @@ def test_bad_sizes_are_refused(sizes: str) -> None:
 
 
 def test_each_population_lives_a_generation_in_each_world(
-    tiny_study: tuple[Path, Path], tmp_path: Path
+    tiny_study: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     out, published = tiny_study
     results = tmp_path / "results"
@@ -86,6 +88,22 @@ def test_each_population_lives_a_generation_in_each_world(
         check_dtype=False,
     )  # fmt: skip
     tests = pd.read_csv(results / "swap_tests.csv")
+    # the same command again reads every row back from --out/swap instead of running
+    kept = sorted((out / swap.CACHE).glob("*.json"))
+    planned = swap.plan(out, results, [0], (2, 8), (4,))
+    assert [p.stem for p in kept] == sorted(e.name for e in planned)
+
+    def no_run(*args: object, **kwargs: object) -> None:
+        raise AssertionError("ran again")
+
+    monkeypatch.setattr(EvolutionRunner, "run", no_run)
+    assert swap.main([*args, "--workers", "1"]) == 0
+    pd.testing.assert_frame_equal(pd.read_csv(results / swap.SWAP_FILE), table)
+    # a row kept for other genomes or settings is measured again
+    record = json.loads(kept[0].read_text())
+    kept[0].write_text(json.dumps({**record, "fingerprint": "another"}))
+    with pytest.raises(AssertionError, match="ran again"):
+        swap.main([*args, "--workers", "1"])
     assert len(tests) == 2 * 4 * 3  # a seed each (none where no agent completed the task)
     assert set(tests["n_a"]) <= {0, 1} and set(tests["n_b"]) <= {0, 1}
 
