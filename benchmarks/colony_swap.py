@@ -15,8 +15,8 @@ evolved on 100 robots           away                at home
 ==============================  ==================  ====================
 
 The smaller size's EE population also lives a generation in the worlds of the study's other
-sizes (10, 25 and 50 robots, time-sharing 10, 4 and 2 agents each in larger fields): if it
-does worse there too, what costs it is the larger field, not the end of time sharing.
+sizes (10, 25 and 50 robots, time-sharing 10, 4 and 2 agents each in larger fields): what it
+loses there, a larger world costs it even where robots still time-share.
 
 Each evaluation is a fresh run of the world's cell (its ``run.json``: the study's settings for
 that N) with the run's seed and the chosen genomes as its initial population, robot-major, for
