@@ -172,8 +172,9 @@ def final_population(path: Path) -> list[Any]:
         return runner.scheduler.population()
 
 
-def evaluate(evaluation: Evaluation) -> dict[str, Any]:
-    """Generation 0 of ``evaluation``'s world with its genomes, as one row.
+def evaluate(evaluation: Evaluation, genomes: Sequence[Any]) -> dict[str, Any]:
+    """Generation 0 of ``evaluation``'s world with ``genomes``, the final population of its
+    genomes' run (:func:`final_population`), as one row.
 
     With a ``cache`` the row is kept there, under the evaluation's fingerprint (its settings,
     seed, behaviours and genomes: :func:`~evolution.runner.checkpoints.run_fingerprint`), and
@@ -184,7 +185,6 @@ def evaluate(evaluation: Evaluation) -> dict[str, Any]:
 
     record = read_run_record(evaluation.world)
     config = run_config_from_record(record["config"])
-    genomes = final_population(evaluation.genomes)
     if config.method != evaluation.method or len(genomes) != config.evolution.population_size:
         raise StudyError(f"{evaluation.world}: not a {evaluation.method} run of "
                          f"{len(genomes)} agents")  # fmt: skip
@@ -235,8 +235,11 @@ def swap_table(
     evaluations: Sequence[Evaluation], workers: int, progress: bool = False
 ) -> pd.DataFrame:
     """:func:`evaluate` of every evaluation, in order, on ``workers`` processes (the rows do
-    not depend on how many); with ``progress``, a line as each one finishes."""
+    not depend on how many); with ``progress``, a line as each one finishes. Each run's final
+    population is read once, however many worlds it lives in."""
     start = time.monotonic()
+    populations = {path: final_population(path) for path in {e.genomes for e in evaluations}}
+    genomes = [populations[e.genomes] for e in evaluations]
 
     def done(k: int, row: dict[str, Any]) -> dict[str, Any]:
         if progress:
@@ -246,10 +249,11 @@ def swap_table(
         return row
 
     if workers == 1:
-        rows = [done(k, evaluate(e)) for k, e in enumerate(evaluations, 1)]
+        rows = [done(k, evaluate(e, g))
+                for k, (e, g) in enumerate(zip(evaluations, genomes, strict=True), 1)]  # fmt: skip
     else:
         with ProcessPoolExecutor(workers) as pool:
-            rows = [done(k, r) for k, r in enumerate(pool.map(evaluate, evaluations), 1)]
+            rows = [done(k, r) for k, r in enumerate(pool.map(evaluate, evaluations, genomes), 1)]
     return pd.DataFrame(rows)
 
 
