@@ -17,7 +17,7 @@ every slot to complete each generation), and profiles the loop with cProfile: wh
 component, then the top functions.
 
 Run: ``python -m benchmarks.evolution_throughput [--steps 4000] [--policies auto]
-[--backend numba|numpy]``
+[--backend numba|numpy] [--controller paper|mlp|ctrnn]``
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import mujoco
 import numpy as np
 
 from behaviours import BehaviourPolicies
+from evolution.config import EvolutionConfig
 from evolution.runner import EvolutionRunner, RunConfig
 
 #: (label, function name patterns) of the components reported by the profile; cumulative time
@@ -202,14 +203,19 @@ def main(argv: list[str] | None = None) -> dict:
         "--backend", choices=("numba", "numpy"), default="numba",
         help="the runner's kernels: compiled, or their numpy references",
     )  # fmt: skip
+    parser.add_argument(
+        "--controller", default="paper",
+        help="the evolved controller (evolution.controller; default the paper's)",
+    )  # fmt: skip
     parser.add_argument("--json", help="also write the numbers to this JSON file")
     args = parser.parse_args(argv)
 
     policies, label = choose_policies(args.policies)
     print(f"behaviours: {label}")
-    results: dict = {"policies": label, "methods": {}}
+    print(f"controller: {args.controller}")
+    results: dict = {"policies": label, "controller": args.controller, "methods": {}}
     for method in args.methods.split(","):
-        config = RunConfig(method=method)
+        config = RunConfig(method=method, evolution=EvolutionConfig(controller=args.controller))
         runner = EvolutionRunner(config, args.seed, policies, backend=args.backend)
         for _ in range(args.warmup):
             runner.step()

@@ -159,7 +159,30 @@ class ChoiceRule:
         return "one of " + ", ".join(map(str, self.allowed()))
 
 
-Rule = IntegerRule | NumberRule | BooleanRule | ChoiceRule
+@dataclass(frozen=True)
+class NamesRule:
+    """Comma-separated names, each one of a registry's names at the time of the check.
+
+    Attributes:
+        registry: a function returning the names allowed now.
+    """
+
+    registry: Callable[[], Sequence[str]]
+
+    def check(self, name: str, value: object) -> None:
+        allowed = self.registry()
+        parts = [part.strip() for part in value.split(",")] if isinstance(value, str) else []
+        bad = next((part for part in parts if part not in allowed), None) if parts else value
+        if bad is not None:
+            raise ValueError(
+                f"{name} must be comma-separated names from {', '.join(allowed)}, got {bad!r}"
+            )
+
+    def describe(self) -> str:
+        return "comma-separated names from " + ", ".join(self.registry())
+
+
+Rule = IntegerRule | NumberRule | BooleanRule | ChoiceRule | NamesRule
 
 
 def _metadata(rule: Rule, unit: str, source: str) -> dict[str, object]:
@@ -214,6 +237,13 @@ def choice(
     return dataclasses.field(default=default, metadata=_metadata(rule, "", source))
 
 
+def names(default: str, registry: Callable[[], Sequence[str]], *, source: str = "") -> str:
+    """A dataclass field holding comma-separated names from a registry (see
+    :func:`validate_fields`)."""
+    rule = NamesRule(registry)
+    return dataclasses.field(default=default, metadata=_metadata(rule, "", source))
+
+
 def validate_fields(config: object, prefix: str = "") -> None:
     """Check every field of the dataclass ``config`` that declares a rule.
 
@@ -246,6 +276,7 @@ __all__ = [
     "BooleanRule",
     "ChoiceRule",
     "IntegerRule",
+    "NamesRule",
     "NumberRule",
     "Rule",
     "boolean",
@@ -256,6 +287,7 @@ __all__ = [
     "choice",
     "describe",
     "integer",
+    "names",
     "number",
     "validate_fields",
 ]

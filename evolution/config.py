@@ -28,12 +28,13 @@ from cyber_rodent.validation import (
     check_number,
     choice,
     integer,
+    names,
     number,
     validate_fields,
 )
 from cyber_rodent.world import MAX_ROBOTS
 from evolution.controllers import controller_names, paper_blocks, resolve
-from evolution.input_kernels import N_INPUTS
+from evolution.input_kernels import N_INPUTS, PAPER, input_names_allowed, select_inputs
 
 #: The two evolution methods: embodied evolution and the centralised GA baseline (paper §4.1).
 METHODS = ("ee", "ce")
@@ -178,6 +179,34 @@ class LearningConfig:
                 )
 
 
+@dataclass(frozen=True)
+class CtrnnConfig:
+    """The ranges of the ``ctrnn`` controller's evolved time constants and gains (Beer 1995;
+    docs/design.md §9.31). A gene g maps onto ``low (high / low) ** ((clip(g, -1, 1) + 1) / 2)``:
+    log-uniform over the range for the initial U[-1, 1] genes.
+
+    Attributes:
+        tau_low: shortest time constant, in control steps; at least 1, so the forward-Euler
+            step of one control step never overshoots a unit's fixed point.
+        tau_high: longest time constant, in control steps (100 steps = 20 s at the default
+            0.2 s step, a quarter of the paper's 400-step lifetime).
+        gain_low: smallest gain of a unit's sigmoid.
+        gain_high: largest gain (Beer's networks use gains of about 1 to 5).
+    """
+
+    tau_low: float = number(1.0, 1.0, 1e4, unit="control steps", source="docs/design.md §9.31")
+    tau_high: float = number(
+        100.0, 1.0, 1e4, unit="control steps", source="docs/design.md §9.31"
+    )
+    gain_low: float = number(1.0, 0.0, 100.0, low_open=True, source="docs/design.md §9.31")
+    gain_high: float = number(5.0, 0.0, 100.0, low_open=True, source="docs/design.md §9.31")
+
+    def __post_init__(self) -> None:
+        validate_fields(self, "evolution.ctrnn.")
+        check_number("evolution.ctrnn.tau_high", self.tau_high, self.tau_low)
+        check_number("evolution.ctrnn.gain_high", self.gain_high, self.gain_low)
+
+
 #: How the chance that a mating yields an offspring candidate depends on energy.
 @dataclass(frozen=True)
 class ReproductionConfig:
@@ -239,7 +268,12 @@ class EvolutionConfig:
             one-layer controller (39 weights), or ``"mlp"``, one tanh hidden layer of
             ``hidden_units`` units with the paper's recharge part; or a controller a program
             registered (:func:`evolution.controllers.register_controller`).
-        hidden_units: ``mlp`` only: the units of its hidden layer.
+        hidden_units: ``mlp`` and ``ctrnn``: the units of the hidden layer (the network).
+        inputs: the controller's inputs, comma-separated, in column order: ``paper`` stands
+            for the paper's twelve (§3.5), and any built-in or registered input may follow
+            (``paper,steps_since_recharge``; docs/design.md §5 lists them). The genome has one
+            weight per input and output, so the default keeps the paper's 39 genes.
+        ctrnn: ``ctrnn`` only: the ranges of its time constants and gains.
         genetics: the genome and its operators (Table 2).
         learning: learning mode (off by default; docs/design.md §11).
         reproduction: reproduction variants (the paper's rule by default).
@@ -275,6 +309,8 @@ class EvolutionConfig:
     )
     controller: str = choice("paper", controller_names, source="paper §3.5")
     hidden_units: int = integer(8, 1, 64, unit="units", source="docs/design.md §9.28")
+    inputs: str = names(PAPER, input_names_allowed, source="paper §3.5")
+    ctrnn: CtrnnConfig = field(default_factory=CtrnnConfig)
     genetics: GeneticConfig = field(default_factory=GeneticConfig)
     learning: LearningConfig = field(default_factory=LearningConfig)
     reproduction: ReproductionConfig = field(default_factory=ReproductionConfig)
@@ -283,6 +319,9 @@ class EvolutionConfig:
         validate_fields(self)
         if not isinstance(self.learning, LearningConfig):
             raise ValueError(f"learning must be a LearningConfig, got {type(self.learning)!r}")
+        if not isinstance(self.ctrnn, CtrnnConfig):
+            raise ValueError(f"ctrnn must be a CtrnnConfig, got {type(self.ctrnn)!r}")
+        select_inputs(self.inputs)  # a name given twice
         if not isinstance(self.reproduction, ReproductionConfig):
             raise ValueError(
                 f"reproduction must be a ReproductionConfig, got {type(self.reproduction)!r}"

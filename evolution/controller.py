@@ -78,7 +78,11 @@ class NeuralController:
         max_recharge_steps: recharge-step normalisation (paper: 40).
         backend: ``"numba"`` (the compiled kernel) or ``"numpy"`` (its reference).
         controller: the controller and its inputs (:func:`evolution.controllers.resolve`);
-            default: the paper's over the input table in use.
+            default: the paper's over the paper's inputs.
+        state: (n_robots, state size) the active agents' own controller state, read and
+            written by every :meth:`decide` (the scheduler's ``controller_state``: it swaps
+            each agent's state in and out); default: a zero buffer of its own.
+        lifetime_steps: the steps-since inputs' normalisation (paper: 400).
 
     Attributes:
         buffers: the :class:`~evolution.kernels.ControllerBuffers`: ``inputs`` (n, inputs),
@@ -98,15 +102,22 @@ class NeuralController:
         max_recharge_steps: int = 40,
         backend: Backend = DEFAULT_BACKEND,
         controller: ControllerLayout | None = None,
+        state: np.ndarray | None = None,
+        lifetime_steps: int = 400,
     ) -> None:
         layout = controller if controller is not None else resolve(EvolutionConfig())
         n = check_integer("n_robots", weights.shape[0], 1)
         if weights.shape != (n, layout.length) or weights.dtype != np.float64:
             raise ValueError(f"weights must be float64 of shape ({n}, {layout.length})")
+        if state is None:
+            state = np.zeros((n, layout.state_size))
+        if state.shape != (n, layout.state_size) or state.dtype != np.float64:
+            raise ValueError(f"state must be float64 of shape ({n}, {layout.state_size})")
         self.layout = layout
         self.rules = layout.rules(
             check_number("max_energy", max_energy, 0.0, low_open=True),
             float(check_integer("max_recharge_steps", max_recharge_steps, 1)),
+            float(check_integer("lifetime_steps", lifetime_steps, 1)),
         )
         inputs = np.zeros((n, layout.n_inputs))
         for column, row in enumerate(layout.inputs):
@@ -119,6 +130,7 @@ class NeuralController:
             behaviour=np.zeros(n, dtype=np.int64),
             led=np.zeros(n, dtype=np.bool_),
             continue_recharge=np.zeros(n, dtype=np.bool_),
+            state=state,
         )
         self.n_robots = n
         self.backend = check_backend(backend)
@@ -131,6 +143,11 @@ class NeuralController:
     def behaviour(self) -> np.ndarray:
         """(n,) the behaviour each robot chose at the last :meth:`decide`."""
         return self.buffers.behaviour
+
+    @property
+    def state(self) -> np.ndarray:
+        """(n, state size) the active agents' own controller state (empty if stateless)."""
+        return self.buffers.state
 
     @property
     def led(self) -> np.ndarray:

@@ -15,6 +15,13 @@ entry of :data:`CONTROLLERS`, a :class:`ControllerSpec` that declares
   genes ``out.weights`` (the blocks' starts and shapes are in ``rules.layout``) and writes
   ``out.activations``, ``out.behaviour``, ``out.led`` and ``out.continue_recharge``
   (:class:`evolution.kernels.ControllerBuffers`);
+- its **own state** per agent (``state_size(config, n_inputs)`` numbers, 0 for a stateless
+  controller): the rule reads and writes ``out.state`` (n, state size), the active agents'
+  state. The state belongs to the agent, not to the robot: it is zero at birth (every newborn),
+  the scheduler saves it when a robot switches the agent out and restores it when the agent
+  comes back (:mod:`evolution.scheduler`), and checkpoints hold it, so a resumed run continues
+  bit for bit. A controller needs nothing else to remember;
+- its **constants** (``constants(config)``: numbers its rule reads from ``rules.constants``);
 - whether a deployment bundle can hold it (its standalone reference step implements it).
 
 The runner's fused step is built around the rule by :func:`step_kernels`
@@ -32,7 +39,11 @@ Built in:
   reads a quantity the selection inputs lack (the steps recharged), runs only while docked
   when the selection part is idle, and a line in (energy, steps) is all a keep-or-stop threshold
   needs; so the two controllers differ only in the selection part, whose capacity is what the
-  comparison is about, and the genome's first three genes mean the same in both.
+  comparison is about, and the genome's first three genes mean the same in both;
+- ``ctrnn``: a continuous-time recurrent network (Beer 1995) of ``evolution.hidden_units``
+  units, one Euler step per control step, with evolved time constants, biases and gains
+  (ranges in ``evolution.ctrnn``) and the paper's recharge part; its unit states are each
+  agent's own (:mod:`evolution.controller_kernels`).
 
 **Adding a controller** is one entry here (its blocks and its two kernels, written beside the
 mlp's in :mod:`evolution.controller_kernels`) and its test; a program can also add one at run
@@ -53,7 +64,12 @@ import numpy as np
 
 from behaviours.kernels import InputBuffers
 from cyber_rodent.vision.types import BATTERY, FACE, LED
-from evolution.controller_kernels import decide_mlp, decide_mlp_reference
+from evolution.controller_kernels import (
+    decide_ctrnn,
+    decide_ctrnn_reference,
+    decide_mlp,
+    decide_mlp_reference,
+)
 from evolution.input_kernels import (
     N_PAPER_INPUTS,
     PAPER_INPUTS,
@@ -69,7 +85,7 @@ from evolution.input_kernels import (
     fill_nothing,
     fill_nothing_reference,
     fill_rows_reference,
-    input_table,
+    select_inputs,
 )
 from evolution.kernels import (
     N_OUTPUTS,
@@ -129,6 +145,10 @@ class ControllerSpec:
         deployable: a deployment bundle can hold it.
         prebuilt: fused kernels compiled once per installation, used with the paper's inputs
             (None: built in-process by :func:`step_kernels`).
+        state_size: ``state_size(config, n_inputs)``: numbers of each agent's own state (the
+            rule's ``out.state`` row); None: stateless (0).
+        constants: ``constants(config)``: the numbers the rule reads as ``rules.constants``;
+            None: none.
     """
 
     name: str
@@ -138,6 +158,8 @@ class ControllerSpec:
     decide_reference: ControllerKernel
     deployable: bool = False
     prebuilt: StepKernels | None = None
+    state_size: Callable[[EvolutionConfig, int], int] | None = None
+    constants: Callable[[EvolutionConfig], tuple[float, ...]] | None = None
 
     def __post_init__(self) -> None:
         if not re.fullmatch(r"[a-z][a-z0-9_]*", self.name):
@@ -161,6 +183,19 @@ def _mlp_blocks(config: EvolutionConfig, n_inputs: int) -> tuple[GeneBlock, ...]
     )
 
 
+def _ctrnn_blocks(config: EvolutionConfig, n_inputs: int) -> tuple[GeneBlock, ...]:
+    units = config.hidden_units
+    return (
+        GeneBlock("recharge", (N_RECHARGE,), "weights of energy, steps recharged and bias"),
+        GeneBlock("input", (units, n_inputs), "units x inputs"),
+        GeneBlock("recurrent", (units, units), "units x units (from unit m into unit j)"),
+        GeneBlock("bias", (units,), "each unit's bias"),
+        GeneBlock("tau", (units,), "each unit's time constant, log-mapped onto evolution.ctrnn"),
+        GeneBlock("gain", (units,), "each unit's gain, log-mapped onto evolution.ctrnn"),
+        GeneBlock("output", (N_OUTPUTS, units + 1), "Mate, Forage, Search x (units, bias)"),
+    )
+
+
 #: The paper's one-layer controller (§3.5).
 PAPER = ControllerSpec(
     name="paper",
@@ -180,8 +215,23 @@ MLP = ControllerSpec(
     decide=decide_mlp,
     decide_reference=decide_mlp_reference,
 )
+#: A continuous-time recurrent network with memory (Beer 1995); the paper's recharge part.
+CTRNN = ControllerSpec(
+    name="ctrnn",
+    description="a continuous-time recurrent network (Beer 1995) of evolution.hidden_units "
+    "units with evolved time constants, biases and gains; memory per agent; the paper's "
+    "recharge part",
+    blocks=_ctrnn_blocks,
+    decide=decide_ctrnn,
+    decide_reference=decide_ctrnn_reference,
+    state_size=lambda config, n_inputs: 2 * config.hidden_units,
+    constants=lambda config: (
+        config.ctrnn.tau_low, config.ctrnn.tau_high, config.ctrnn.gain_low,
+        config.ctrnn.gain_high,
+    ),  # fmt: skip
+)
 #: The built-in controllers, in the order ``cyber-rodent config`` lists them.
-BUILT_IN: tuple[ControllerSpec, ...] = (PAPER, MLP)
+BUILT_IN: tuple[ControllerSpec, ...] = (PAPER, MLP, CTRNN)
 #: Every controller by name: the built-in ones and any registered since.
 CONTROLLERS: dict[str, ControllerSpec] = {spec.name: spec for spec in BUILT_IN}
 
@@ -223,11 +273,15 @@ class ControllerLayout:
         spec: the controller.
         blocks: its genome blocks, in genome order.
         inputs: the input table it reads (one column per row).
+        state_size: numbers of each agent's own state (0: stateless).
+        constants: the numbers its rule reads as ``rules.constants``.
     """
 
     spec: ControllerSpec
     blocks: tuple[GeneBlock, ...]
     inputs: tuple[ControllerInput, ...]
+    state_size: int = 0
+    constants: tuple[float, ...] = ()
 
     @property
     def length(self) -> int:
@@ -266,11 +320,14 @@ class ControllerLayout:
             return None
         return tuple(s for block in self.blocks for s in [block.initial_scale] * block.size)
 
-    def rules(self, max_energy: float, max_recharge_steps: float) -> ControllerRules:
+    def rules(
+        self, max_energy: float, max_recharge_steps: float, lifetime_steps: float = 400.0
+    ) -> ControllerRules:
         """The kernels' constants for this controller (class columns of the vision)."""
         return ControllerRules(
             float(max_energy), float(max_recharge_steps), LED, FACE, BATTERY,
-            self.layout_array(),
+            self.layout_array(), np.array(self.constants, dtype=np.float64),
+            float(lifetime_steps),
         )  # fmt: skip
 
     def kernels(self) -> StepKernels:
@@ -282,10 +339,11 @@ def resolve(
     config: EvolutionConfig, inputs: tuple[ControllerInput, ...] | None = None
 ) -> ControllerLayout:
     """The controller of ``config`` (``evolution.controller``) over ``inputs`` (default: the
-    table in use, :func:`evolution.input_kernels.input_table`).
+    run's, ``evolution.inputs``: :func:`evolution.input_kernels.select_inputs`).
 
     Raises:
-        ValueError: the controller is not registered (in this process).
+        ValueError: the controller or an input is not registered (in this process), or the
+            controller declares a negative state size.
     """
     spec = CONTROLLERS.get(config.controller)
     if spec is None:
@@ -293,8 +351,12 @@ def resolve(
             f"evolution.controller must be one of {', '.join(CONTROLLERS)}, got "
             f"{config.controller!r}"
         )
-    rows = input_table() if inputs is None else inputs
-    return ControllerLayout(spec, tuple(spec.blocks(config, len(rows))), rows)
+    rows = select_inputs(config.inputs) if inputs is None else inputs
+    size = 0 if spec.state_size is None else int(spec.state_size(config, len(rows)))
+    if size < 0:
+        raise ValueError(f"controller {spec.name}: state_size must be >= 0, got {size}")
+    constants = () if spec.constants is None else tuple(map(float, spec.constants(config)))
+    return ControllerLayout(spec, tuple(spec.blocks(config, len(rows))), rows, size, constants)
 
 
 def genome_length(config: EvolutionConfig) -> int:
@@ -343,6 +405,7 @@ def step_kernels(spec: ControllerSpec, inputs: tuple[ControllerInput, ...]) -> S
 __all__ = [
     "BUILT_IN",
     "CONTROLLERS",
+    "CTRNN",
     "MLP",
     "PAPER",
     "ControllerLayout",

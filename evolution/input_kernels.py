@@ -37,9 +37,9 @@ from typing import Any, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from behaviours.kernels import InputBuffers
+from behaviours.kernels import BehaviourInputs, InputBuffers
 from cyber_rodent.backend import jit_built, jit_inline
-from cyber_rodent.constants import PROXIMITY_SIX, RANGE_SENSORS
+from cyber_rodent.constants import PROXIMITY_SIX, RANGE_SENSORS, TOP_SPEED
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 
 Floats = npt.NDArray[np.float64]
@@ -59,6 +59,11 @@ class ControllerRules(NamedTuple):
     #: (blocks, 3) each genome block's start, rows and columns, in the controller's block
     #: order (:class:`evolution.controllers.GeneBlock`); the default is the paper's layout.
     layout: Ints = np.array([[0, 1, 3], [3, 3, 12]], dtype=np.int64)  # noqa: RUF009
+    #: the controller's own constants (:attr:`evolution.controllers.ControllerSpec.constants`:
+    #: the CTRNN's time-constant and gain ranges); empty for the paper's
+    constants: Floats = np.zeros(0)  # noqa: RUF009
+    lifetime_steps: float = 400.0  #: steps-since inputs = clip(steps / lifetime_steps, 0, 1)
+    top_speed: float = TOP_SPEED  #: wheel inputs = (speed / top_speed + 1) / 2, m/s
 
 
 class RobotState(NamedTuple):
@@ -67,6 +72,12 @@ class RobotState(NamedTuple):
     energy: Floats  #: (n,) the active agent's energy
     recharge_steps: Ints  #: (n,) consecutive steps recharged so far
     led_on: Bools  #: (n,) the LED as lit during the previous step
+    #: (n, 2) m/s, the left and right wheel speeds the robot commanded in the previous step
+    wheels: Floats = np.zeros((0, 2))  # noqa: RUF009
+    #: (n,) steps since the active agent last recharged (0 while docked; its age if never)
+    since_recharge: Ints = np.zeros(0, dtype=np.int64)  # noqa: RUF009
+    #: (n,) steps since the active agent last mated (0 in the mating step; its age if never)
+    since_mating: Ints = np.zeros(0, dtype=np.int64)  # noqa: RUF009
 
 
 class InputSources(NamedTuple):
@@ -122,6 +133,27 @@ def bias(i: int, src: InputSources, arg: int) -> float:
 def led_previous(i: int, src: InputSources, arg: int) -> float:
     """1 if the robot's LED was lit during the previous step, else 0."""
     return 1.0 if src.robots.led_on[i] else 0.0
+
+
+# --- the readers of the built-in inputs beyond the paper's ------------------------------------
+@jit_inline
+def wheel(i: int, src: InputSources, arg: int) -> float:
+    """Wheel ``arg`` (0 left, 1 right) as commanded in the previous step, mapped from
+    [-top speed, top speed] onto [0, 1] (0.5 stopped)."""
+    value = (src.robots.wheels[i, arg] / src.rules.top_speed + 1.0) * 0.5
+    return float(min(1.0, max(0.0, value)))
+
+
+@jit_inline
+def steps_since_recharge(i: int, src: InputSources, arg: int) -> float:
+    """Steps since the active agent last recharged over the lifetime, at most 1."""
+    return float(min(1.0, src.robots.since_recharge[i] / src.rules.lifetime_steps))
+
+
+@jit_inline
+def steps_since_mating(i: int, src: InputSources, arg: int) -> float:
+    """Steps since the active agent last mated over the lifetime, at most 1."""
+    return float(min(1.0, src.robots.since_mating[i] / src.rules.lifetime_steps))
 
 
 # --- the table ---------------------------------------------------------------------------------
@@ -246,6 +278,45 @@ INPUTS: tuple[ControllerInput, ...] = (
     ),
 )
 
+#: Built-in inputs beyond the paper's: a run reads them only where ``evolution.inputs`` names
+#: them, so adding one here changes no run (the default genome stays the paper's 39 genes).
+EXTRA_INPUTS: tuple[ControllerInput, ...] = (
+    *(
+        ControllerInput(
+            name=f"wheel_{side}",
+            reads=f"robots.wheels[:, {arg}]",
+            normalisation="clip((speed / {top_speed} + 1) / 2, 0, 1) of the "
+            + side + " wheel's command in the previous control step (0.5: stopped)",
+            low=0.0,
+            high=1.0,
+            description=f"the {side} wheel's last command",
+            read=wheel,
+            arg=arg,
+        )
+        for arg, side in enumerate(("left", "right"))
+    ),
+    ControllerInput(
+        name="steps_since_recharge",
+        reads="robots.since_recharge",
+        normalisation="clip(steps / {lifetime_steps}, 0, 1): steps since the active agent last "
+        "recharged (0 while docked; since birth if it never did)",
+        low=0.0,
+        high=1.0,
+        description="time since the agent's last recharge",
+        read=steps_since_recharge,
+    ),
+    ControllerInput(
+        name="steps_since_mating",
+        reads="robots.since_mating",
+        normalisation="clip(steps / {lifetime_steps}, 0, 1): steps since the active agent last "
+        "mated (0 in the mating step; since birth if it never did)",
+        low=0.0,
+        high=1.0,
+        description="time since the agent's last mating",
+        read=steps_since_mating,
+    ),
+)
+
 #: Column indices of the paper's inputs (derived from the table).
 INPUT_NAMES: tuple[str, ...] = tuple(row.name for row in INPUTS)
 N_INPUTS = len(INPUTS)
@@ -342,25 +413,113 @@ def fill_rows_reference(
             inputs[i, column] = read(i, src, row.arg)
 
 
-# --- the table in use: the declared rows and those a program registered ------------------------
+# --- the inputs a run may name: the declared rows and those a program registered -------------
 _REGISTERED: list[ControllerInput] = []
+#: The name of ``evolution.inputs`` that stands for the paper's twelve inputs, in order.
+PAPER = "paper"
 
 
-def input_table() -> tuple[ControllerInput, ...]:
-    """The inputs in use: :data:`INPUTS`, then any registered with :func:`register_input`."""
-    return INPUTS + tuple(_REGISTERED)
+def available_inputs() -> tuple[ControllerInput, ...]:
+    """Every input a run may name in ``evolution.inputs``: the paper's (:data:`INPUTS`), the
+    built-in extras (:data:`EXTRA_INPUTS`), then any registered with :func:`register_input`."""
+    return INPUTS + EXTRA_INPUTS + tuple(_REGISTERED)
+
+
+def input_names_allowed() -> tuple[str, ...]:
+    """The names ``evolution.inputs`` accepts now: ``paper`` and every available input."""
+    return (PAPER, *(row.name for row in available_inputs()))
+
+
+def select_inputs(names: str) -> tuple[ControllerInput, ...]:
+    """The inputs a run reads, from ``evolution.inputs``: comma-separated names, in column
+    order, where ``paper`` stands for the paper's twelve (the default is ``paper`` alone).
+
+    Raises:
+        ValueError: one line naming ``evolution.inputs``, the offending name and the allowed
+            ones (an unknown name, a name given twice, or no input at all).
+    """
+    rows = {row.name: row for row in available_inputs()}
+    chosen: list[ControllerInput] = []
+    for part in str(names).split(","):
+        name = part.strip()
+        if name == PAPER:
+            chosen.extend(INPUTS)
+        elif name in rows:
+            chosen.append(rows[name])
+        else:
+            raise ValueError(
+                f"evolution.inputs must be comma-separated names from "
+                f"{', '.join(input_names_allowed())}, got {name!r}"
+            )
+    seen: set[str] = set()
+    for row in chosen:
+        if row.name in seen:
+            raise ValueError(f"evolution.inputs names {row.name!r} twice, got {names!r}")
+        seen.add(row.name)
+    return tuple(chosen)
+
+
+def source_fields() -> dict[str, tuple[str, ...]]:
+    """What a reader may read: each part of :class:`InputSources` and its fields."""
+    return {
+        "rules": ControllerRules._fields,
+        "robots": RobotState._fields,
+        "perceived": (
+            *(name for name in InputBuffers._fields if name != "behaviour"),
+            *(f"behaviour.{name}" for name in BehaviourInputs._fields),
+        ),
+    }
+
+
+def probe_sources() -> InputSources:
+    """One robot at rest that sees nothing: what :func:`probe_reader` calls a reader on."""
+    behaviour = BehaviourInputs(
+        np.array([[0.5, 1.0]]), np.array([[0.5, 1.0]]), np.zeros((1, 2)),
+        np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_),
+    )  # fmt: skip
+    perceived = InputBuffers(
+        np.zeros((1, 6)), np.full((1, 3), 0.5), np.ones((1, 3)), behaviour
+    )
+    robots = RobotState(
+        np.ones(1), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.bool_), np.zeros((1, 2)),
+        np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64),
+    )  # fmt: skip
+    return InputSources(ControllerRules(200.0, 40.0, LED, FACE, BATTERY), robots, perceived)
+
+
+def probe_reader(row: ControllerInput) -> None:
+    """Call ``row``'s reader once, as Python, on :func:`probe_sources`; a field it reads that
+    the sources lack is one ``ValueError`` line listing the fields a reader may read.
+
+    Raises:
+        ValueError: the reader reads a field that does not exist, or returns no number.
+    """
+    try:
+        value = row.python_reader()(0, probe_sources(), row.arg)
+    except AttributeError as error:
+        fields = "; ".join(
+            f"src.{part}: {', '.join(names)}" for part, names in source_fields().items()
+        )
+        raise ValueError(
+            f"input {row.name}: its reader failed ({error}); a reader may read {fields}"
+        ) from None
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise ValueError(f"input {row.name}: its reader must return a number, got {value!r}")
 
 
 def register_input(row: ControllerInput) -> None:
-    """Add ``row`` as the last input of every controller built from now on in this process.
+    """Make ``row`` an input a run may name in ``evolution.inputs`` in this process (a
+    registered input joins no run unless named).
 
     Raises:
-        ValueError: an input of that name exists.
+        ValueError: an input of that name exists, or its reader reads a field that does not
+            exist (the message lists the fields it may read).
     """
     if not isinstance(row, ControllerInput):
         raise ValueError(f"row must be a ControllerInput, got {type(row).__name__}")
-    if row.name in {r.name for r in input_table()}:
+    if row.name in {r.name for r in available_inputs()} or row.name == PAPER:
         raise ValueError(f"an input named {row.name!r} exists")
+    probe_reader(row)
     _REGISTERED.append(row)
 
 
@@ -409,8 +568,10 @@ def row_record(row: ControllerInput, index: int, numbers: Mapping[str, str]) -> 
 
 
 __all__ = [
+    "EXTRA_INPUTS",
     "INPUTS",
     "INPUT_NAMES",
+    "PAPER",
     "IN_BATTERY_DISTANCE",
     "IN_BIAS",
     "IN_ENERGY",
@@ -439,7 +600,15 @@ __all__ = [
     "fill_nothing",
     "fill_nothing_reference",
     "fill_rows_reference",
-    "input_table",
+    "available_inputs",
+    "input_names_allowed",
+    "probe_reader",
+    "probe_sources",
+    "select_inputs",
+    "source_fields",
+    "steps_since_mating",
+    "steps_since_recharge",
+    "wheel",
     "led_distance",
     "led_previous",
     "markdown_table",

@@ -99,6 +99,11 @@ class ControllerBuffers(NamedTuple):
     behaviour: Ints  #: (n,) out: the chosen behaviour
     led: Bools  #: (n,) out: LED on (activation Mate > activation Forage)
     continue_recharge: Bools  #: (n,) out: the recharge decision (True = keep recharging)
+    #: (n, S) in/out: the active agents' own controller state (S = the controller's
+    #: ``state_size``, 0 for a stateless one). It belongs to the agent: the scheduler saves it
+    #: when a robot switches its agent out and restores it when the agent comes back; a newborn
+    #: starts from zeros (:mod:`evolution.controllers`).
+    state: Floats
 
 
 class ActionBuffers(NamedTuple):
@@ -158,6 +163,8 @@ class SlotCounters(NamedTuple):
     energy: Floats  #: (n,) the active agent's energy
     batteries: Ints  #: (n,) captures in its life
     switched: Bools  #: (n,) out: cleared here; the slow path sets it
+    since_recharge: Ints  #: (n,) steps since the active agent last recharged (0 while docked)
+    since_mating: Ints  #: (n,) steps since the active agent last mated (0 in the mating step)
 
 
 class StepOutcome(NamedTuple):
@@ -167,6 +174,7 @@ class StepOutcome(NamedTuple):
     died: Bools  #: (n,)
     captured: Bools  #: (n,) docked onto a pack
     mated_with: Ints  #: (n,) partner robot or -1
+    recharging: Bools  #: (n,) docked (recharging) after the step
 
 
 class ScheduleRules(NamedTuple):
@@ -501,8 +509,9 @@ def build_step_kernels(
 def tick(counters: SlotCounters, outcome: StepOutcome, rules: ScheduleRules) -> bool:
     """One step of bookkeeping; True if a slot may end this step (the slow path must run).
 
-    For active robots: age and slice +1, energy copied, a capture counted. ``switched`` is
-    cleared.
+    For active robots: age and slice +1, energy copied, a capture counted, the steps since the
+    last recharge (0 while docked) and since the last mating (0 in its step) counted. ``switched``
+    is cleared.
     """
     something = False
     for i in range(counters.active.shape[0]):
@@ -513,6 +522,14 @@ def tick(counters: SlotCounters, outcome: StepOutcome, rules: ScheduleRules) -> 
             counters.energy[i] = outcome.energy[i]
             if outcome.captured[i]:
                 counters.batteries[i] += 1
+            if outcome.recharging[i]:
+                counters.since_recharge[i] = 0
+            else:
+                counters.since_recharge[i] += 1
+            if outcome.mated_with[i] >= 0:
+                counters.since_mating[i] = 0
+            else:
+                counters.since_mating[i] += 1
         if (
             outcome.mated_with[i] >= 0
             or outcome.died[i]
@@ -531,6 +548,10 @@ def tick_reference(counters: SlotCounters, outcome: StepOutcome, rules: Schedule
     counters.time_slice[...] += active
     np.copyto(counters.energy, outcome.energy, where=active)
     counters.batteries[...] += outcome.captured & active
+    counters.since_recharge[...] += active
+    counters.since_recharge[active & outcome.recharging] = 0
+    counters.since_mating[...] += active
+    counters.since_mating[active & (outcome.mated_with >= 0)] = 0
     return bool(
         outcome.mated_with.max() >= 0
         or outcome.died.any()

@@ -35,6 +35,14 @@ for this generation and leaves the round robin. A robot whose agents have all fi
 robot has finished; then the whole population is replaced by tournament selection
 (:func:`evolution.reproduction.next_generation`) and every robot restarts at slot 0.
 
+**The agent's own state.** A controller with memory (:mod:`evolution.controllers`,
+``state_size`` > 0) keeps per agent, not per robot, a vector of ``state_size`` numbers: zero at
+birth (every newborn, whatever its origin: offspring, spare, random or selected), saved in
+:attr:`slot_state` when a robot switches the agent out, restored into the live buffer
+(:attr:`controller_state`, which the controller reads and writes every step) when it switches
+it back in. The counters the controller's inputs may read (steps since the agent's last
+recharge and last mating) follow it the same way.
+
 A scheduler's complete state (agents, spare lists, life records, counters, random generator
 states, statistics) is plain data from :meth:`TimeSharingScheduler.state`, restored in place by
 :meth:`TimeSharingScheduler.load_state`: what checkpoints store (docs/design.md §10).
@@ -61,6 +69,7 @@ from evolution.agent import (
 from evolution.agent import fitness as fitness_rule
 from evolution.checkpoint import restore_array
 from evolution.config import EvolutionConfig
+from evolution.controllers import resolve
 from evolution.genome import Genome, GenomeLayout
 from evolution.kernels import ScheduleRules, SlotCounters, StepOutcome, tick, tick_reference
 from evolution.reproduction import draw_replacement, make_offspring, next_generation
@@ -68,6 +77,9 @@ from evolution.stats import StatisticsRecorder
 
 #: ``mated_with`` value for "no mating this step" (as in the survival world's events).
 NO_PARTNER = -1
+
+#: The scheduler arrays of the agents' own state (absent from states written before it).
+AGENT_STATE_ARRAYS = ("state", "slot_state", "since_recharge", "since_mating", "slot_since")
 
 #: :attr:`TimeSharingScheduler.completed_lives` keeps the lives of the generations from this
 #: many below the newest closed one upwards: a checkpoint written when a generation closes
@@ -221,10 +233,19 @@ class TimeSharingScheduler:
         self._matings = np.zeros(n, dtype=np.int64)
         self._slice = np.zeros(n, dtype=np.int64)
         self._end = np.zeros(n, dtype=bool)
+        # The agents' own state (a controller with memory) and input counters, per slot and live.
+        size = resolve(config).state_size
+        self.slot_state = np.zeros((n, k, size))
+        self._state = np.zeros((n, size))
+        self.slot_since = np.zeros((n, k, 2), dtype=np.int64)
+        self._since_recharge = np.zeros(n, dtype=np.int64)
+        self._since_mating = np.zeros(n, dtype=np.int64)
+        self._not_recharging = np.zeros(n, dtype=bool)
         #: The per-step bookkeeping's buffers (views of the arrays above).
         self.counters = SlotCounters(
-            self.active, self._age, self._slice, self.active_energy, self._batteries, self.switched
-        )
+            self.active, self._age, self._slice, self.active_energy, self._batteries, self.switched,
+            self._since_recharge, self._since_mating,
+        )  # fmt: skip
         self._rules = ScheduleRules(config.time_sharing_steps, config.lifetime_steps)
         self.backend = check_backend(backend)
         self._tick = pick(self.backend, tick, tick_reference)
@@ -241,6 +262,21 @@ class TimeSharingScheduler:
         view = self._weights.view()
         view.flags.writeable = False
         return view
+
+    @property
+    def controller_state(self) -> np.ndarray:
+        """(n_robots, state size) the active agents' own controller state: the live, writeable
+        buffer the controller reads and updates every step (fetch once)."""
+        return self._state
+
+    @property
+    def since_view(self) -> tuple[np.ndarray, np.ndarray]:
+        """(n_robots,) live read-only views of the steps since the active agents' last
+        recharge (0 while docked) and last mating (fetch once)."""
+        views = (self._since_recharge.view(), self._since_mating.view())
+        for view in views:
+            view.flags.writeable = False
+        return views
 
     @property
     def active_age(self) -> np.ndarray:
@@ -286,6 +322,7 @@ class TimeSharingScheduler:
         died: np.ndarray,
         captured: np.ndarray,
         mated_with: np.ndarray,
+        recharging: np.ndarray | None = None,
     ) -> np.ndarray:
         """Apply one control step's outcome for every robot; return :attr:`switched`.
 
@@ -299,6 +336,8 @@ class TimeSharingScheduler:
                 (``StepEvents.captured``: by default, it docked onto a pack).
             mated_with: (n,) int, the robot whose active agent this robot's active agent mated
                 with this step, or :data:`NO_PARTNER`; must be symmetric.
+            recharging: (n,) bool, the robot is docked after the step (the world's ``docked``);
+                None: nobody is (it only feeds the steps-since-recharge counter).
 
         Returns:
             The :attr:`switched` buffer (overwritten by the next call).
@@ -309,7 +348,9 @@ class TimeSharingScheduler:
         """
         active = self.active
         self.steps += 1
-        if not self._bookkeep(energy, died, captured, mated_with):
+        if recharging is None:
+            recharging = self._not_recharging
+        if not self._bookkeep(energy, died, captured, mated_with, recharging):
             return self.switched
         cfg = self.config
         any_mating = bool(mated_with.max() >= 0)
@@ -329,7 +370,12 @@ class TimeSharingScheduler:
         return self.switched
 
     def _bookkeep(
-        self, energy: np.ndarray, died: np.ndarray, captured: np.ndarray, mated_with: np.ndarray
+        self,
+        energy: np.ndarray,
+        died: np.ndarray,
+        captured: np.ndarray,
+        mated_with: np.ndarray,
+        recharging: np.ndarray,
     ) -> bool:
         """The step's bookkeeping (:func:`evolution.kernels.tick`); True if a slot may end.
 
@@ -343,8 +389,9 @@ class TimeSharingScheduler:
             or died is not bound[1]
             or captured is not bound[2]
             or mated_with is not bound[3]
+            or recharging is not bound[4]
         ):
-            arrays = (energy, died, captured, mated_with)
+            arrays = (energy, died, captured, mated_with, recharging)
             self._bound_tick = bind(self._tick, self.counters, StepOutcome(*arrays), self._rules)
             self._bound_arrays = arrays
         return bool(self._bound_tick())
@@ -417,11 +464,19 @@ class TimeSharingScheduler:
         agent.energy = float(self.active_energy[robot])
         agent.batteries = int(self._batteries[robot])
         agent.matings = int(self._matings[robot])
+        slot = int(self.active_slot[robot])
+        self.slot_state[robot, slot] = self._state[robot]
+        self.slot_since[robot, slot, 0] = self._since_recharge[robot]
+        self.slot_since[robot, slot, 1] = self._since_mating[robot]
         return agent
 
     def _load(self, robot: int) -> None:
-        agent = self.slots[robot][int(self.active_slot[robot])]
+        slot = int(self.active_slot[robot])
+        agent = self.slots[robot][slot]
         self._weights[robot] = agent.genome.controller
+        self._state[robot] = self.slot_state[robot, slot]
+        self._since_recharge[robot] = self.slot_since[robot, slot, 0]
+        self._since_mating[robot] = self.slot_since[robot, slot, 1]
         self.active_energy[robot] = agent.energy
         self._age[robot] = agent.age
         self._batteries[robot] = agent.batteries
@@ -434,6 +489,8 @@ class TimeSharingScheduler:
         self.slots[robot][slot] = VirtualAgent(
             genome, float(self.config.initial_energy), generation=generation, origin=origin
         )
+        self.slot_state[robot, slot] = 0.0  # a newborn's own state starts from zero
+        self.slot_since[robot, slot] = 0
         self.stats.record_birth(generation, origin)
         self.birth_log.append((self.steps, robot, slot, generation, int(origin)))
 
@@ -501,10 +558,18 @@ class TimeSharingScheduler:
             raise ValueError("the saved population has another layout of robots and slots")
         arrays = state["arrays"]
         targets = self._state_arrays()
-        if sorted(arrays) != sorted(targets):
+        # States written before the agents' own state existed lack its arrays: they were runs
+        # of stateless controllers whose inputs never read the counters, so zeros continue them.
+        missing = sorted(set(targets) - set(arrays))
+        if sorted(set(arrays) - set(targets)) or not set(missing) <= set(AGENT_STATE_ARRAYS):
             raise ValueError(f"scheduler arrays {sorted(arrays)}, expected {sorted(targets)}")
+        if any(name.endswith("state") and targets[name].size for name in missing):
+            raise ValueError("the saved state has no controller state, this controller has one")
         for name, target in targets.items():
-            restore_array(target, arrays[name], f"scheduler {name}")
+            if name in arrays:
+                restore_array(target, arrays[name], f"scheduler {name}")
+            else:
+                target[...] = 0
         self._rng.bit_generator.state = state["rng"]
         self.slots = slots
         self.stats.load_state(state["stats"])
@@ -532,6 +597,11 @@ class TimeSharingScheduler:
             "batteries": self._batteries,
             "matings": self._matings,
             "slice": self._slice,
+            "state": self._state,
+            "slot_state": self.slot_state,
+            "since_recharge": self._since_recharge,
+            "since_mating": self._since_mating,
+            "slot_since": self.slot_since,
         }
 
     def _method_state(self, pool: GenomePool) -> dict[str, Any]:
@@ -688,6 +758,9 @@ class CentralisedEvolution(TimeSharingScheduler):
                 return
         self.active[robot] = False
         self.switched[robot] = True
+        self._state[robot] = 0.0
+        self._since_recharge[robot] = 0
+        self._since_mating[robot] = 0
         self.active_energy[robot] = 0.0
         self._age[robot] = 0
         self._slice[robot] = 0

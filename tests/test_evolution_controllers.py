@@ -41,7 +41,7 @@ from evolution.input_kernels import (
     ControllerInput,
     InputSources,
     RobotState,
-    input_table,
+    input_names_allowed,
     markdown_table,
     register_input,
     unregister_input,
@@ -88,6 +88,7 @@ def _buffers(weights: np.ndarray, n_inputs: int = N_INPUTS) -> ControllerBuffers
         behaviour=np.zeros(n, dtype=np.int64),
         led=np.zeros(n, dtype=bool),
         continue_recharge=np.zeros(n, dtype=bool),
+        state=np.zeros((n, 0)),
     )
 
 
@@ -248,15 +249,16 @@ def test_a_block_declares_its_initial_range() -> None:
 # --- the setting ---------------------------------------------------------------------------------
 def test_controller_is_a_setting() -> None:
     known = settings()
+    names = ", ".join(CONTROLLERS)  # the registry's names, whatever is built in
     assert known["evolution.controller"].default == "paper"
-    assert known["evolution.controller"].allowed == "one of paper, mlp"
+    assert known["evolution.controller"].allowed == f"one of {names}"
     assert known["evolution.hidden_units"].allowed == "integer in [1, 64]"
     assert parse_set(["evolution.controller=mlp", "evolution.hidden_units=3"]) == {
         "evolution.controller": "mlp", "evolution.hidden_units": 3,
     }  # fmt: skip
     text = to_toml()
     assert 'controller = "paper"' in text and "hidden_units = 8" in text
-    with pytest.raises(ValueError, match=r"controller must be one of paper, mlp, got 'nn'"):
+    with pytest.raises(ValueError, match=rf"controller must be one of {names}, got 'nn'"):
         EvolutionConfig(controller="nn")
     with pytest.raises(ValueError, match=r"hidden_units must be an integer in \[1, 64\]"):
         EvolutionConfig(hidden_units=0)
@@ -440,16 +442,26 @@ def energy_squared_registered():
     register_input(ENERGY_SQUARED)
     yield ENERGY_SQUARED
     unregister_input(ENERGY_SQUARED.name)
-    assert input_table() == INPUTS
+    assert ENERGY_SQUARED.name not in input_names_allowed()
+
+
+def test_a_registered_input_joins_only_the_runs_that_name_it(energy_squared_registered) -> None:
+    assert EvolutionConfig().genome_length == GENOME_LENGTH  # the default run is the paper's
+    assert resolve(EvolutionConfig()).inputs == INPUTS
+    named = EvolutionConfig(inputs="paper,energy_squared")
+    assert [row.name for row in resolve(named).inputs] == [*INPUT_NAMES, "energy_squared"]
+    assert named.genome_length == GENOME_LENGTH + 3
 
 
 @pytest.mark.parametrize(
     "controller", ["paper", pytest.param("mlp", marks=pytest.mark.slow)]  # each compiles ~25 s
 )
 def test_an_input_added_here_reaches_the_fused_step(energy_squared_registered, controller) -> None:
-    evo = dataclasses.replace(SMALL, controller=controller, hidden_units=2)
+    evo = dataclasses.replace(
+        SMALL, controller=controller, hidden_units=2, inputs="paper,energy_squared"
+    )
     layout = resolve(evo)
-    assert layout.n_inputs == 13
+    assert layout.n_inputs == N_INPUTS + 1
     if controller == "paper":
         assert evo.genome_length == GENOME_LENGTH + 3 == 42  # one more weight per output
     else:
@@ -472,13 +484,14 @@ def test_an_input_added_here_reaches_the_fused_step(energy_squared_registered, c
 
 
 def test_an_added_input_is_recorded_by_checkpoints(energy_squared_registered, tmp_path) -> None:
-    with EvolutionRunner(RunConfig(evolution=SMALL), 1, BehaviourPolicies.load_default()) as runner:
+    evo = dataclasses.replace(SMALL, inputs="paper,energy_squared")
+    with EvolutionRunner(RunConfig(evolution=evo), 1, BehaviourPolicies.load_default()) as runner:
         for _ in range(5):
             runner.step()
         path = runner.save_checkpoint(tmp_path / "c.ckpt")
     unregister_input(ENERGY_SQUARED.name)
     try:
-        with pytest.raises(CheckpointError, match=r"other controller inputs .*energy_squared"):
+        with pytest.raises(CheckpointError, match=r"inputs must be .*got 'energy_squared'"):
             EvolutionRunner.from_checkpoint(path, BehaviourPolicies.load_default())
     finally:
         register_input(ENERGY_SQUARED)
@@ -491,7 +504,8 @@ def test_an_input_without_an_observation_cannot_be_deployed(energy_squared_regis
     from evolution.lab.deploy import write_bundle
 
     with pytest.raises(ValueError, match=r"^controller input 'energy_squared' states no observ"):
-        write_bundle(tmp_path / "b", np.zeros((1, 42)))
+        write_bundle(tmp_path / "b", np.zeros((1, 42)),
+                     config=RunConfig(evolution=EvolutionConfig(inputs="paper,energy_squared")))
     assert not (tmp_path / "b").exists()
 
 

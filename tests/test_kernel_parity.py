@@ -244,6 +244,7 @@ def _controller(n: int, weights: np.ndarray) -> ControllerBuffers:
         behaviour=np.zeros(n, dtype=np.int64),
         led=np.zeros(n, dtype=bool),
         continue_recharge=np.zeros(n, dtype=bool),
+        state=np.zeros((n, 0)),
     )
 
 
@@ -309,7 +310,8 @@ def test_tick_matches_its_reference() -> None:
     counters = [
         SlotCounters(
             rng.random(n) < 0.8, np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n),
-            np.zeros(n, np.int64), np.ones(n, bool),
+            np.zeros(n, np.int64), np.ones(n, bool), rng.integers(0, 50, n),
+            rng.integers(0, 50, n),
         )  # fmt: skip
     ]
     counters.append(_copy(counters[0]))
@@ -317,7 +319,7 @@ def test_tick_matches_its_reference() -> None:
     for step in range(400):
         outcome = StepOutcome(
             rng.uniform(0, 200, n), rng.random(n) < 0.01, rng.random(n) < 0.05,
-            np.where(rng.random(n) < 0.02, 0, -1),
+            np.where(rng.random(n) < 0.02, 0, -1), rng.random(n) < 0.2,
         )  # fmt: skip
         a = tick(counters[0], outcome, rules)
         b = tick_reference(counters[1], outcome, rules)

@@ -48,12 +48,14 @@ from evolution.checkpoint import (
     config_fingerprint,
     load_checkpoint,
     read_header,
+    restore_array,
     save_checkpoint,
 )
 from evolution.config import LearningConfig, ReproductionConfig
 from evolution.genome import Genome
-from evolution.input_kernels import PAPER_INPUTS, input_table
+from evolution.input_kernels import PAPER_INPUTS
 from evolution.runner.config import RunConfig, run_config_from_record
+from evolution.runner.fingerprint_fields import FINGERPRINT_FIELDS
 from evolution.runner.settings import settings
 from evolution.runner.world_state import capture_world, restore_world
 
@@ -106,9 +108,10 @@ def genomes_identity(genomes: Sequence[Genome] | None) -> str | None:
     return digest.hexdigest()
 
 
-#: Config fields added after checkpoints were first written (their path in the config, then
-#: the default that reproduces the behaviour before them): at that default they are left out
-#: of the fingerprint, so older checkpoints still resume.
+#: Config fields added after checkpoints were first written and before new fields were left out
+#: automatically (their path in the config, then the default that reproduces the behaviour
+#: before them): at that default they are left out of the fingerprint, so older checkpoints
+#: still resume. Frozen history: a field added since needs no entry (:func:`_drop_new_defaults`).
 LATER_FIELDS: tuple[tuple[Any, ...], ...] = (
     ("evolution", "controller", "paper"),
     ("evolution", "hidden_units", 8),
@@ -126,12 +129,38 @@ LATER_FIELDS: tuple[tuple[Any, ...], ...] = (
 )
 
 
+def _later_paths() -> frozenset[str]:
+    return frozenset(".".join(map(str, (*path, name))) for *path, name, _ in LATER_FIELDS)
+
+
+def _drop_new_defaults(run: dict[str, Any], defaults: dict[str, Any], prefix: str = "") -> None:
+    """Remove from ``run`` (an ``asdict`` config, in place) every field that is neither in
+    :data:`FINGERPRINT_FIELDS` nor under a ``LATER_FIELDS`` entry and holds its default (a
+    section left empty goes too): a field added to the config changes no fingerprint while it
+    holds its default."""
+    later = _later_paths()
+    for name in list(run):
+        path = prefix + name
+        if path in later or name not in defaults:
+            continue
+        value, default = run[name], defaults[name]
+        if isinstance(value, dict) and isinstance(default, dict):
+            _drop_new_defaults(value, default, path + ".")
+            if not value and path not in FINGERPRINT_FIELDS:
+                del run[name]
+        elif path not in FINGERPRINT_FIELDS and value == default:
+            del run[name]
+
+
+def _default_record() -> dict[str, Any]:
+    return dataclasses.asdict(RunConfig())
+
+
 def run_fingerprint(
     config: RunConfig, seed: int, policies_id: str, genomes_id: str | None = None
 ) -> str:
-    """What a checkpoint must match to be resumed by a run: config (its controller included),
-    seed, policies, the initial population if one was given, and the controller's inputs if
-    they are not the paper's (:func:`evolution.input_kernels.input_table`)."""
+    """What a checkpoint must match to be resumed by a run: config (its controller and inputs
+    included), seed, policies and the initial population if one was given."""
     run = dataclasses.asdict(config)
     if run.get("profile", 0) is None:
         del run["profile"]  # runs without a profile keep the fingerprints they always had
@@ -141,6 +170,7 @@ def run_fingerprint(
             section = section.get(part, {})
         if name in section and section[name] == default:
             del section[name]  # likewise runs that leave a later field at its default
+    _drop_new_defaults(run, _default_record())
     fields: dict[str, Any] = {
         "run": run,
         "seed": seed,
@@ -148,9 +178,6 @@ def run_fingerprint(
     }
     if genomes_id is not None:
         fields["initial_genomes"] = genomes_id
-    inputs = input_names()
-    if inputs != PAPER_INPUT_NAMES:
-        fields["inputs"] = inputs
     return config_fingerprint(fields)
 
 
@@ -158,18 +185,39 @@ def run_fingerprint(
 PAPER_INPUT_NAMES = [row.name for row in PAPER_INPUTS]
 
 
-def input_names() -> list[str]:
-    """The names of the controller's inputs in use, in order."""
-    return [row.name for row in input_table()]
-
-
-def _inputs_difference(state: dict[str, Any]) -> str:
-    """"" if ``state``'s run read the inputs in use, else the difference in words."""
+def _inputs_difference(state: dict[str, Any], runner: EvolutionRunner) -> str:
+    """"" if ``state``'s run read the inputs ``runner`` reads, else the difference in words."""
     saved = state.get("inputs", PAPER_INPUT_NAMES)
-    here = input_names()
+    here = [row.name for row in runner.controller.layout.inputs]
     if saved == here:
         return ""
     return f"controller inputs {saved} there, {here} here"
+
+
+def _record_differences(saved: object, parsed: RunConfig) -> str:
+    """The config fields in which a checkpoint's stored config (``saved``, as written) and the
+    config this code reads from it (``parsed``) differ, in words: the fields this code added
+    since, with their defaults, or changed."""
+    here = dataclasses.asdict(parsed)
+    out: list[str] = []
+
+    def walk(there: Any, now: Any, prefix: str) -> None:
+        if isinstance(there, dict) and isinstance(now, dict):
+            for name in sorted(set(there) | set(now)):
+                path = prefix + name
+                if name not in there:
+                    out.append(f"{path} (not in the checkpoint; {now[name]!r} here)")
+                elif name not in now:
+                    out.append(f"{path} (in the checkpoint, unknown here)")
+                else:
+                    walk(there[name], now[name], path + ".")
+        elif (list(there) if isinstance(there, tuple | list) else there) != (
+            list(now) if isinstance(now, tuple | list) else now
+        ):
+            out.append(f"{prefix.rstrip('.')} ({there!r} there, {now!r} here)")
+
+    walk(saved, here, "")
+    return ", ".join(out)
 
 
 # --- state ----------------------------------------------------------------------------------
@@ -188,7 +236,8 @@ def runner_state(runner: EvolutionRunner) -> dict[str, Any]:
         "world": capture_world(runner.survival, runner.vision),
         "range_noise": None if noise is None else noise.rng.bit_generator.state,
         "learning": None if runner.learning is None else runner.learning.state(),
-        "inputs": input_names(),
+        "inputs": [row.name for row in runner.controller.layout.inputs],
+        "wheels": runner.action.wheels.copy(),
     }
 
 
@@ -210,7 +259,12 @@ def restore_runner(runner: EvolutionRunner, state: dict[str, Any]) -> None:
         raise ValueError("the range-sensor noise generator does not match this run's profile")
     if noise is not None:
         noise.rng.bit_generator.state = saved
-    learning, learned = runner.learning, state.get("learning")
+    # The previous step's wheel commands (an input may read them); absent in states written
+    # before any input could, whose runs never read them.
+    wheels = state.get("wheels")
+    if wheels is not None:
+        restore_array(runner.action.wheels, wheels, "wheels")
+        learning, learned = runner.learning, state.get("learning")
     if (learning is None) != (learned is None):
         raise ValueError(
             "learning.enabled: the checkpoint was written in "
@@ -287,12 +341,6 @@ def load_run(
             f"started with other settings ({differences}); resume it with those"
         ) from None
 
-    inputs = _inputs_difference(state)
-    if inputs:
-        raise CheckpointError(
-            f"{path}: checkpoint was written with other controller inputs ({inputs}); resume "
-            "it with those (evolution.input_kernels)"
-        )
     try:
         config = run_config_from_record(state["config"])
         seed = check_integer("seed", state["seed"], 0)
@@ -306,10 +354,26 @@ def load_run(
         )
     payload_fingerprint = run_fingerprint(config, seed, policies_id, genomes_id)
     if payload_fingerprint != header.get("fingerprint"):
-        raise CheckpointError(f"{path}: header and payload disagree (config fingerprint)")
+        differences = _record_differences(state["config"], config)
+        cause = (
+            f"this code reads its config differently: {differences}; a config field added "
+            "since must default to the behaviour before it"
+            if differences
+            else "the file was altered"
+        )
+        raise CheckpointError(
+            f"{path}: header and payload disagree (config fingerprint): {cause}"
+        )
     runner = cls(config, seed, policies, backend=backend)
     runner.initial_genomes_id = genomes_id
     runner.fingerprint = payload_fingerprint
+    inputs = _inputs_difference(state, runner)
+    if inputs:
+        runner.close()
+        raise CheckpointError(
+            f"{path}: checkpoint was written with other controller inputs ({inputs}); resume "
+            "it with those (evolution.inputs)"
+        )
     try:
         restore_runner(runner, state)
     except (ValueError, KeyError, TypeError, IndexError) as error:
@@ -332,8 +396,7 @@ def _setting_differences(path: Path, kind: str, config: RunConfig) -> str:
         for key in here
         if key in there and there[key].default != here[key].default
     ]
-    inputs = _inputs_difference(state)
-    return ", ".join(differences + ([inputs] if inputs else []))
+    return ", ".join(differences)
 
 
 def checkpoint_path(directory: str | os.PathLike[str], generation: int) -> Path:

@@ -216,10 +216,15 @@ class EvolutionRunner:
         the controller reads the scheduler's live ``active_weights``.
         """
         evo, survival, perception = self.config.evolution, self.survival, self.perception
-        robots = RobotState(survival.energy, survival.recharge_steps, self.world.led_on)
+        since_recharge, since_mating = self.scheduler.since_view
+        robots = RobotState(
+            survival.energy, survival.recharge_steps, self.world.led_on, self.action.wheels,
+            since_recharge, since_mating,
+        )  # fmt: skip
         self.controller = NeuralController(
             self.scheduler.active_weights, robots, perception.inputs, evo.max_energy,
             evo.max_recharge_steps, backend=self.backend, controller=resolve(evo),
+            state=self.scheduler.controller_state, lifetime_steps=evo.lifetime_steps,
         )  # fmt: skip
         # The controller's fused calls: the paper's own kernels for the paper's controller and
         # inputs, else built in this process around its rule (evolution.controllers).
@@ -290,8 +295,9 @@ class EvolutionRunner:
             self._log_world_events(events)
         # schedule: ageing, time sharing, matings, deaths, offspring
         switched = scheduler.on_step(
-            self.survival.energy, events.died, events.captured, events.mate_partner
-        )
+            self.survival.energy, events.died, events.captured, events.mate_partner,
+            self.survival.docked,
+        )  # fmt: skip
         if not np.count_nonzero(switched):
             return False
         self._load_switched(switched)

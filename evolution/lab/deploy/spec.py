@@ -150,7 +150,9 @@ def check_deployable(config: RunConfig) -> ControllerLayout:
         raise ValueError(
             f"evolution.controller = {layout.spec.name!r}: a deployment bundle holds only "
             f"controllers its reference step implements ({able})"
-        )
+            + ("; this one has per-agent memory the reference step does not carry"
+               if layout.state_size else "")
+        )  # fmt: skip
     for row in layout.inputs:
         if row.observation is None:
             raise ValueError(
