@@ -44,6 +44,7 @@ class Origin(enum.IntEnum):
     SPARE = 2  #: drawn from the robot's spare list (the unused child of an earlier offspring)
     RANDOM = 3  #: a fresh random genome, made because the spare list was empty
     SELECTED = 4  #: made by the centralised GA's tournament selection
+    RECEIVED = 5  #: mEDEA: a genome the robot received by broadcast, mutated
 
 
 class GenomePool:

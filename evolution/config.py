@@ -207,6 +207,39 @@ class CtrnnConfig:
         check_number("evolution.ctrnn.gain_high", self.gain_high, self.gain_low)
 
 
+#: Which agents share a spare list in EE (docs/design.md §9.34).
+SPARE_LISTS = ("robot", "colony", "position")
+
+
+@dataclass(frozen=True)
+class MedeaConfig:
+    """The rules of mEDEA (Bredeche and Montanier 2012) that the paper it comes from leaves
+    open or that meet this world (docs/design.md §9.34). mEDEA runs one agent per robot
+    (``population_size = n_robots``) whose slot is its whole life (``time_sharing_steps =
+    lifetime_steps``).
+
+    Attributes:
+        broadcast_range: m, a robot receives the genome of every active robot whose IR port is
+            this close to its own, in the same arena, at every control step (mEDEA broadcasts
+            continuously; the default is the IR exchange's port-to-port range,
+            ``survival.mate_distance``; no facing condition, a broadcast is omnidirectional).
+        listen_lifetimes: lifetimes a robot that received no genome stays inactive, listening,
+            before it restarts with a fresh random genome (mEDEA leaves it inactive until it
+            hears one; a colony that fell silent would never close a generation).
+        mutate: the genome picked from those received is mutated (the genetic operators'
+            mutation; mEDEA's rule) before it runs.
+    """
+
+    broadcast_range: float = number(
+        0.35, 0.0, 10.0, low_open=True, unit="m", source="docs/design.md §9.34"
+    )
+    listen_lifetimes: int = integer(1, 1, 1000, unit="lifetimes", source="docs/design.md §9.34")
+    mutate: bool = boolean(True, source="Bredeche and Montanier 2012")
+
+    def __post_init__(self) -> None:
+        validate_fields(self, "evolution.medea.")
+
+
 #: How the chance that a mating yields an offspring candidate depends on energy.
 @dataclass(frozen=True)
 class ReproductionConfig:
@@ -274,6 +307,11 @@ class EvolutionConfig:
             (``paper,steps_since_recharge``; docs/design.md §5 lists them). The genome has one
             weight per input and output, so the default keeps the paper's 39 genes.
         ctrnn: ``ctrnn`` only: the ranges of its time constants and gains.
+        spare_list: EE: which agents share a spare list (the unused children that replace
+            dead or unmated agents): ``robot``, the paper's (a robot's subpopulation),
+            ``colony`` (one list for all), or ``position`` (the robots at the same position in
+            their arenas, ``world.arenas``: the twin of one robot's subpopulation).
+        medea: the ``medea`` scheme's rules.
         genetics: the genome and its operators (Table 2).
         learning: learning mode (off by default; docs/design.md §11).
         reproduction: reproduction variants (the paper's rule by default).
@@ -311,6 +349,8 @@ class EvolutionConfig:
     hidden_units: int = integer(8, 1, 64, unit="units", source="docs/design.md §9.28")
     inputs: str = names(PAPER, input_names_allowed, source="paper §3.5")
     ctrnn: CtrnnConfig = field(default_factory=CtrnnConfig)
+    spare_list: str = choice("robot", SPARE_LISTS, source="paper §2")
+    medea: MedeaConfig = field(default_factory=MedeaConfig)
     genetics: GeneticConfig = field(default_factory=GeneticConfig)
     learning: LearningConfig = field(default_factory=LearningConfig)
     reproduction: ReproductionConfig = field(default_factory=ReproductionConfig)
@@ -321,6 +361,8 @@ class EvolutionConfig:
             raise ValueError(f"learning must be a LearningConfig, got {type(self.learning)!r}")
         if not isinstance(self.ctrnn, CtrnnConfig):
             raise ValueError(f"ctrnn must be a CtrnnConfig, got {type(self.ctrnn)!r}")
+        if not isinstance(self.medea, MedeaConfig):
+            raise ValueError(f"medea must be a MedeaConfig, got {type(self.medea)!r}")
         select_inputs(self.inputs)  # a name given twice
         if not isinstance(self.reproduction, ReproductionConfig):
             raise ValueError(

@@ -152,6 +152,8 @@ class TimeSharingScheduler:
             ``initial_genomes[r * k : (r + 1) * k]``); random U[-1, 1] genomes if None.
         backend: ``"numba"`` or ``"numpy"``: which implementation of the per-step bookkeeping
             (:func:`evolution.kernels.tick`) runs.
+        robot_arena: (n_robots,) the arena of each robot (``World.robot_arena``); None: all in
+            one. Schemes whose rules are local to an arena read it.
 
     Attributes:
         active_weights: (n_robots, controller genes) the controller genes of each robot's
@@ -181,9 +183,16 @@ class TimeSharingScheduler:
         rng: np.random.Generator,
         initial_genomes: Sequence[Genome] | None = None,
         backend: Backend = DEFAULT_BACKEND,
+        robot_arena: np.ndarray | None = None,
     ) -> None:
         if not isinstance(config, EvolutionConfig):
             raise ValueError(f"config must be an EvolutionConfig, got {type(config)!r}")
+        n_robots = config.n_robots
+        arena = np.zeros(n_robots, dtype=np.int64) if robot_arena is None else robot_arena
+        if np.shape(arena) != (n_robots,):
+            raise ValueError(f"robot_arena must have one arena per robot ({n_robots})")
+        #: (n_robots,) each robot's arena.
+        self.robot_arena = np.asarray(arena, dtype=np.int64).copy()
         if not isinstance(rng, np.random.Generator):
             raise ValueError(f"rng must be a numpy.random.Generator, got {type(rng)!r}")
         self.config = config
@@ -612,11 +621,33 @@ class TimeSharingScheduler:
         """Restore what :meth:`_method_state` saved."""
 
 
+def spare_groups(rule: str, robot_arena: np.ndarray) -> np.ndarray:
+    """(n_robots,) the spare list each robot's agents share, by ``evolution.spare_list``:
+    ``robot`` (the paper: one list per robot's subpopulation), ``colony`` (one list for all) or
+    ``position`` (the robots at the same position within their arenas share one: robot ``r``
+    is the ``p``-th robot of its arena, ``p`` its group; with one arena, as ``robot``)."""
+    n = len(robot_arena)
+    if rule == "robot":
+        return np.arange(n, dtype=np.int64)
+    if rule == "colony":
+        return np.zeros(n, dtype=np.int64)
+    if rule == "position":
+        groups = np.zeros(n, dtype=np.int64)
+        seen: dict[int, int] = {}
+        for r, arena in enumerate(robot_arena.tolist()):
+            groups[r] = seen.get(arena, 0)
+            seen[arena] = int(groups[r]) + 1
+        return groups
+    raise ValueError(f"evolution.spare_list must be one of robot, colony, position, got {rule!r}")
+
+
 class EmbodiedEvolution(TimeSharingScheduler):
     """The paper's embodied evolution: local, asynchronous reproduction through mating.
 
     Attributes:
-        spare_lists: per robot, the unused children of earlier reproductions.
+        spare_lists: per spare-list group, the unused children of earlier reproductions (one
+            group per robot by default, the paper's rule: ``evolution.spare_list``).
+        spare_group: (n_robots,) the group whose spare list each robot's agents use.
         robot_rngs: per robot, the generator of its reproduction and replacement draws.
     """
 
@@ -626,9 +657,12 @@ class EmbodiedEvolution(TimeSharingScheduler):
         rng: np.random.Generator,
         initial_genomes: Sequence[Genome] | None = None,
         backend: Backend = DEFAULT_BACKEND,
+        robot_arena: np.ndarray | None = None,
     ) -> None:
-        super().__init__(config, rng, initial_genomes, backend)
-        self.spare_lists: list[list[Genome]] = [[] for _ in range(self.n_robots)]
+        super().__init__(config, rng, initial_genomes, backend, robot_arena)
+        self.spare_group = spare_groups(config.spare_list, self.robot_arena)
+        n_groups = int(self.spare_group.max()) + 1
+        self.spare_lists: list[list[Genome]] = [[] for _ in range(n_groups)]
         self.robot_rngs: list[np.random.Generator] = rng.spawn(self.n_robots)
         self._next_to_close = 0
         n_slots = self.slot_generation.size
@@ -653,10 +687,14 @@ class EmbodiedEvolution(TimeSharingScheduler):
     def _mating_rng(self, robot: int) -> np.random.Generator:
         return self.robot_rngs[robot]
 
+    def _spares(self, robot: int) -> list[Genome]:
+        """The spare list ``robot``'s agents use."""
+        return self.spare_lists[int(self.spare_group[robot])]
+
     def _on_death(self, robot: int, slot: int) -> None:
         cfg = self.config
         genome, origin = draw_replacement(
-            self.spare_lists[robot], self.robot_rngs[robot], cfg.genetics, layout=self.layout
+            self._spares(robot), self.robot_rngs[robot], cfg.genetics, layout=self.layout
         )
         self._new_agent(robot, slot, genome, origin)
 
@@ -668,17 +706,21 @@ class EmbodiedEvolution(TimeSharingScheduler):
         rng = self.robot_rngs[robot]
         if partner is None:
             genome, origin = draw_replacement(
-                self.spare_lists[robot], rng, cfg.genetics, layout=self.layout
+                self._spares(robot), rng, cfg.genetics, layout=self.layout
             )
         else:
             result = make_offspring(
                 agent.genome, agent.fitness(cfg.fitness_time_unit), partner, rng, cfg.genetics
             )
-            self.spare_lists[robot].append(result.spare)
+            self._spares(robot).append(result.spare)
             self.stats.record_reproduction(generation, result.crossover)
             genome, origin = result.offspring, Origin.OFFSPRING
         self.slot_generation[robot, slot] = generation + 1
         self._new_agent(robot, slot, genome, origin)
+        self._close_rows()
+
+    def _close_rows(self) -> None:
+        """Close every statistics row a quorum of slots has passed."""
         while self._quorum_generation() > self._next_to_close:
             spare = sum(len(spares) for spares in self.spare_lists)
             self.stats.close(self._next_to_close, spare)
@@ -698,8 +740,10 @@ class EmbodiedEvolution(TimeSharingScheduler):
     def _load_method_state(self, state: dict[str, Any], genomes: Sequence[Genome]) -> None:
         spare_lists = [[genome_at(genomes, i) for i in spares] for spares in state["spare_lists"]]
         rng_states = state["robot_rngs"]
-        if len(spare_lists) != self.n_robots or len(rng_states) != self.n_robots:
-            raise ValueError("the saved spare lists or generators are not one per robot")
+        if len(spare_lists) != len(self.spare_lists) or len(rng_states) != self.n_robots:
+            raise ValueError(
+                "the saved spare lists or generators are not one per group and one per robot"
+            )
         for rng, saved in zip(self.robot_rngs, rng_states, strict=True):
             rng.bit_generator.state = saved
         self.spare_lists = spare_lists
@@ -720,8 +764,9 @@ class CentralisedEvolution(TimeSharingScheduler):
         rng: np.random.Generator,
         initial_genomes: Sequence[Genome] | None = None,
         backend: Backend = DEFAULT_BACKEND,
+        robot_arena: np.ndarray | None = None,
     ) -> None:
-        super().__init__(config, rng, initial_genomes, backend)
+        super().__init__(config, rng, initial_genomes, backend, robot_arena)
         self.generation = 0
         self.finished = np.zeros((self.n_robots, self.subpopulation_size), dtype=bool)
 

@@ -215,8 +215,10 @@ class StatisticsRecorder:
         b_mean, b_std = _mean_std(tally.batteries)
         m_mean, m_std = _mean_std(tally.matings)
         full_mean, _ = _mean_std(tally.full_life_batteries)
-        offspring = tally.births.get(int(Origin.OFFSPRING), 0) + tally.births.get(
-            int(Origin.SELECTED), 0
+        offspring = (
+            tally.births.get(int(Origin.OFFSPRING), 0)
+            + tally.births.get(int(Origin.SELECTED), 0)
+            + tally.births.get(int(Origin.RECEIVED), 0)
         )
         spare = tally.births.get(int(Origin.SPARE), 0)
         random = tally.births.get(int(Origin.RANDOM), 0)

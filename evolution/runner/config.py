@@ -23,7 +23,8 @@ from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.validation import choice, validate_fields
 from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig, camera_for_field, follow_field
 from cyber_rodent.world import WorldConfig
-from evolution.config import METHODS, EvolutionConfig
+from evolution.config import EvolutionConfig
+from evolution.schemes import scheme, scheme_names
 
 #: Fields that EvolutionConfig and SurvivalConfig share; they must be equal in a run.
 SHARED_ENERGY_FIELDS = ("initial_energy", "max_energy", "max_recharge_steps")
@@ -40,7 +41,9 @@ class RunConfig:
     """Everything that defines a run except its seed and its behaviour policies.
 
     Attributes:
-        method: ``"ee"`` (embodied evolution, paper §2) or ``"ce"`` (centralised GA, §4.1).
+        method: the evolution scheme (:mod:`evolution.schemes`): ``"ee"`` (embodied
+            evolution, paper §2), ``"ce"`` (centralised GA, §4.1), ``"medea"`` (mEDEA,
+            Bredeche and Montanier 2012), or one a program registered.
         evolution: the paper's evolution numbers (Tables 1 and 2).
         survival: the world's energy, docking, recharge and mating rules; derived from
             ``evolution`` if not given (the paper's defaults for everything else).
@@ -61,7 +64,7 @@ class RunConfig:
             sub-configs that disagree (energy numbers, robot count).
     """
 
-    method: str = choice("ee", METHODS, source="paper §4.1")
+    method: str = choice("ee", scheme_names, source="paper §4.1")
     evolution: EvolutionConfig = field(default_factory=EvolutionConfig)
     survival: SurvivalConfig = _FROM_EVOLUTION
     world: WorldConfig = _FROM_EVOLUTION
@@ -74,6 +77,9 @@ class RunConfig:
         if not isinstance(self.evolution, EvolutionConfig):
             raise ValueError(f"evolution must be an EvolutionConfig, got {type(self.evolution)!r}")
         evo = self.evolution
+        check = scheme(self.method).check
+        if check is not None:
+            check(evo)
         if self.survival is _FROM_EVOLUTION:
             shared = {name: getattr(evo, name) for name in SHARED_ENERGY_FIELDS}
             object.__setattr__(self, "survival", SurvivalConfig(**shared))

@@ -17,7 +17,8 @@ Columns:
   reason (``RECHARGE_END``; :data:`RECHARGE_END_SWITCHED` = 0 when the runner ended the recharge
   because the agent was switched out), the partner robot (``MATE``), the agent's age
   (``DEATH``), the :class:`evolution.agent.Origin` of the new agent (``BIRTH``; ``OFFSPRING`` =
-  an EE offspring, ``SELECTED`` = a CE offspring).
+  an EE offspring, ``SELECTED`` = a CE offspring, ``RECEIVED`` = mEDEA's), the sender
+  (``RECEIVE``), 0 (``LISTEN``).
 """
 
 from __future__ import annotations
@@ -46,6 +47,8 @@ class EventKind(enum.IntEnum):
     MATE = 2  #: a successful IR exchange (value: the partner robot)
     DEATH = 3  #: the active agent's energy reached 0 (value: its age)
     BIRTH = 4  #: a new agent took over a slot (value: its Origin)
+    RECEIVE = 5  #: mEDEA: the robot first received a genome from a sender (value: the sender)
+    LISTEN = 6  #: mEDEA: the robot fell silent, listening, having received none (value: 0)
 
 
 class EventLog:
@@ -89,10 +92,12 @@ class EventLog:
         return {kind.name.lower(): int(kinds[kind]) for kind in EventKind}
 
     def offspring(self) -> int:
-        """Births of offspring: EE offspring made at a full lifetime, or CE selected children."""
+        """Births of offspring: EE offspring made at a full lifetime, CE selected children, or
+        mEDEA's received genomes."""
         rows = self._rows[: self._n]
         births = rows[rows[:, 2] == EventKind.BIRTH]
-        return int(np.isin(births[:, 5], (Origin.OFFSPRING, Origin.SELECTED)).sum())
+        made = (Origin.OFFSPRING, Origin.SELECTED, Origin.RECEIVED)
+        return int(np.isin(births[:, 5], made).sum())
 
     def to_frame(self) -> pd.DataFrame:
         """The log as a ``DataFrame`` with a ``kind`` column of names (``"dock"``, ...)."""

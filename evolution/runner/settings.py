@@ -60,6 +60,7 @@ SECTIONS: dict[str, tuple[tuple[str, ...], str]] = {
     "learning": (("evolution", "learning"), "docs/design.md §11"),
     "reproduction": (("evolution", "reproduction"), "docs/design.md §9.27"),
     "ctrnn": (("evolution", "ctrnn"), "docs/design.md §9.31"),
+    "medea": (("evolution", "medea"), "docs/design.md §9.34"),
     "survival": (("survival",), "docs/design.md §9"),
     "world": (("world",), "docs/design.md §9"),
     "camera": (("camera",), "docs/design.md §6"),
@@ -73,7 +74,7 @@ SHARED_KEYS = {
 }
 #: Fields of a section that are not settings (nested configs are reached through their keys).
 _NOT_SETTINGS: dict[tuple[str, ...], set[str]] = {
-    ("evolution",): {"genetics", "learning", "reproduction", "ctrnn"}
+    ("evolution",): {"genetics", "learning", "reproduction", "ctrnn", "medea"}
 }
 
 

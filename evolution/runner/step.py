@@ -77,7 +77,8 @@ from evolution.runner.config import RunConfig
 from evolution.runner.events import RECHARGE_END_SWITCHED, EventKind, EventLog
 from evolution.runner.loop import run_generations
 from evolution.runner.perception import Perception
-from evolution.scheduler import CentralisedEvolution, EmbodiedEvolution, TimeSharingScheduler
+from evolution.scheduler import TimeSharingScheduler
+from evolution.schemes import MedeaEvolution, scheme
 from evolution.stats import GenerationStats
 
 if TYPE_CHECKING:
@@ -159,9 +160,11 @@ class EvolutionRunner:
             backend=backend,
         )  # fmt: skip
         evo = config.evolution
-        scheduler_cls = EmbodiedEvolution if config.method == "ee" else CentralisedEvolution
-        self.scheduler: TimeSharingScheduler = scheduler_cls(
-            evo, np.random.default_rng(scheduler_ss), initial_genomes, backend
+        #: the evolution scheme (``method``: :mod:`evolution.schemes`)
+        self.scheme = scheme(config.method)
+        robot_arena = getattr(self.world, "robot_arena", None)
+        self.scheduler: TimeSharingScheduler = self.scheme.build(
+            evo, np.random.default_rng(scheduler_ss), initial_genomes, backend, robot_arena
         )
         n = evo.n_robots
         self.actuator_sample: ActuatorSample | None = None
@@ -293,11 +296,15 @@ class EvolutionRunner:
             learning.observe(events, scheduler.age_view)
         if events.any:
             self._log_world_events(events)
+        if self.scheme.broadcasts:  # genomes sent to the robots in range (mEDEA)
+            self._broadcast()
         # schedule: ageing, time sharing, matings, deaths, offspring
         switched = scheduler.on_step(
             self.survival.energy, events.died, events.captured, events.mate_partner,
             self.survival.docked,
         )  # fmt: skip
+        if self.scheme.broadcasts:
+            self._log_scheme_events()
         if not np.count_nonzero(switched):
             return False
         self._load_switched(switched)
@@ -373,6 +380,27 @@ class EvolutionRunner:
                 s = int(slot[robot])
                 log.append(step, robot, EventKind.DEATH, s, int(generation[robot, s]),
                            int(age[robot]) + 1)  # fmt: skip
+
+    def _broadcast(self) -> None:
+        """Hand the scheduler which robots' IR ports are within broadcast range of which."""
+        assert isinstance(self.scheduler, MedeaEvolution)
+        ports = self.world.data.site_xpos[self.world.ir_port_site, :2]
+        gap = ports[:, None, :] - ports[None, :, :]
+        reach = self.config.evolution.medea.broadcast_range
+        self.scheduler.receive(np.einsum("ijk,ijk->ij", gap, gap) <= reach * reach)
+
+    def _log_scheme_events(self) -> None:
+        """Append the scheme's own events (mEDEA: receptions, robots falling silent)."""
+        scheduler = self.scheduler
+        assert isinstance(scheduler, MedeaEvolution)
+        generation = scheduler.slot_generation
+        for step, robot, sender in scheduler.receive_log:
+            self.events.append(step, robot, EventKind.RECEIVE, 0, int(generation[robot, 0]),
+                               sender)  # fmt: skip
+        for step, robot in scheduler.listen_log:
+            self.events.append(step, robot, EventKind.LISTEN, 0, int(generation[robot, 0]), 0)
+        scheduler.receive_log.clear()
+        scheduler.listen_log.clear()
 
     def _log_births(self) -> None:
         log = self.events
