@@ -71,8 +71,8 @@ class SchemeSpec:
     def __post_init__(self) -> None:
         if not re.fullmatch(r"[a-z][a-z0-9_]*", self.name):
             raise ValueError(f"scheme name must be snake_case, got {self.name!r}")
-        if not (isinstance(self.scheduler, type) and issubclass(self.scheduler,
-                                                                 TimeSharingScheduler)):  # fmt: skip
+        scheduler = self.scheduler
+        if not (isinstance(scheduler, type) and issubclass(scheduler, TimeSharingScheduler)):
             raise ValueError(f"scheme {self.name}: scheduler must be a TimeSharingScheduler")
 
     def build(

@@ -40,7 +40,7 @@ def quiet(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     return np.full(n, 100.0), np.zeros(n, bool), np.zeros(n, bool), np.full(n, -1)
 
 
-# --- the registry -----------------------------------------------------------------------------------
+# --- the registry ---------------------------------------------------------------------------------
 def test_the_registry_holds_the_paper_schemes_and_medea() -> None:
     assert scheme_names()[:3] == ("ee", "ce", "medea")
     assert SCHEMES["ee"].scheduler is EmbodiedEvolution
@@ -65,8 +65,8 @@ def test_a_scheme_registered_here_is_a_method() -> None:
     try:
         assert "cloning" in scheme_names()
         config = RunConfig(method="cloning")
-        assert isinstance(scheme(config.method).build(config.evolution,
-                                                      np.random.default_rng(0)), Cloning)  # fmt: skip
+        built = scheme(config.method).build(config.evolution, np.random.default_rng(0))
+        assert isinstance(built, Cloning)
         with pytest.raises(ValueError, match="exists"):
             register_scheme(SchemeSpec("cloning", "again", Cloning))
     finally:
@@ -87,7 +87,7 @@ def test_medea_refuses_time_sharing_in_one_line() -> None:
         MedeaConfig(broadcast_range=0.0)
 
 
-# --- mEDEA by hand ---------------------------------------------------------------------------------
+# --- mEDEA by hand --------------------------------------------------------------------------------
 def test_medea_receives_from_active_robots_in_range_in_its_arena() -> None:
     """Robots 0 and 1 share arena 0, robot 2 is in arena 1: all in range of each other, yet
     only 0 and 1 exchange; a repeated broadcast is kept once per sender (its latest genome)."""
@@ -184,7 +184,7 @@ def test_medea_mating_counts_but_carries_no_genome() -> None:
     assert [sched.agent(r, 0).partners for r in range(2)] == [[], []]
 
 
-# --- EE's spare list ---------------------------------------------------------------------------------
+# --- EE's spare list ------------------------------------------------------------------------------
 def test_spare_groups() -> None:
     arena = np.array([0, 0, 1, 1, 2, 2])
     assert spare_groups("robot", arena).tolist() == [0, 1, 2, 3, 4, 5]
@@ -215,7 +215,7 @@ def test_a_dead_agent_is_replaced_from_its_group_spare_list(rule: str) -> None:
     assert len(ee.spare_lists) == {"robot": 4, "colony": 1, "position": 2}[rule]
 
 
-# --- whole runs -------------------------------------------------------------------------------------
+# --- whole runs -----------------------------------------------------------------------------------
 def run_config(method: str, **values) -> RunConfig:
     base = {"evolution.n_robots": 8, "world.field_size": 3.3, "world.n_packs": 10,
             "evolution.lifetime_steps": 60, "evolution.time_sharing_steps": 60}  # fmt: skip
