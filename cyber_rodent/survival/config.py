@@ -73,6 +73,17 @@ class SurvivalConfig:
             energy at the start of the step is above this. 0 is the paper's rule (any living
             agent may mate); later Cyber Rodent work let only well-fed robots mate
             (docs/design.md §9.29).
+        tip_uprightness: the watchdog counts a robot as tipped while its uprightness (chassis
+            z-axis · world z) is below this: 0.5, tilted past 60° (docs/design.md §9.35).
+        stuck_steps: the watchdog counts a robot as stuck after this many control steps in a
+            row of commanding motion without getting ``stuck_distance`` away, neither docked
+            nor in its reflex (25 steps: 5 s).
+        stuck_distance: m, the progress that keeps a robot that commands motion from being
+            stuck (5 s at the slowest forward command would cover over 0.3 m).
+        rescue: an experimenter rescues robots: after ``rescue_after_steps`` control steps
+            tipped or stuck, a robot is set upright at rest at the nearest free spot, its energy
+            and agent unchanged. Off: the paper's robots were never helped.
+        rescue_after_steps: control steps tipped or stuck before a rescue.
     """
 
     initial_energy: float = number(
@@ -114,6 +125,17 @@ class SurvivalConfig:
     mate_reflex: bool = boolean(True, source="docs/design.md §9.7")
     mate_min_energy: float = number(
         0.0, 0.0, ENERGY_LIMIT, unit="energy units", source="docs/design.md §9.29"
+    )
+    tip_uprightness: float = number(0.5, -1.0, 1.0, source="docs/design.md §9.35")
+    stuck_steps: int = integer(
+        25, 1, MAX_STEP_COUNT, unit="control steps", source="docs/design.md §9.35"
+    )
+    stuck_distance: float = number(
+        0.05, 0.0, 1.0, low_open=True, unit="m", source="docs/design.md §9.35"
+    )
+    rescue: bool = boolean(False, source="docs/design.md §9.35")
+    rescue_after_steps: int = integer(
+        25, 1, MAX_STEP_COUNT, unit="control steps", source="docs/design.md §9.35"
     )
 
     def __post_init__(self) -> None:

@@ -238,6 +238,7 @@ def runner_state(runner: EvolutionRunner) -> dict[str, Any]:
         "learning": None if runner.learning is None else runner.learning.state(),
         "inputs": [row.name for row in runner.controller.layout.inputs],
         "wheels": runner.action.wheels.copy(),
+        "watchdog": runner.watchdog.state_dict(),
     }
 
 
@@ -264,7 +265,12 @@ def restore_runner(runner: EvolutionRunner, state: dict[str, Any]) -> None:
     wheels = state.get("wheels")
     if wheels is not None:
         restore_array(runner.action.wheels, wheels, "wheels")
-        learning, learned = runner.learning, state.get("learning")
+        # The watchdog's counters (absent in states written before it: it starts afresh, which
+    # changes nothing a run does unless it rescues, and no run rescued before it existed).
+    watchdog = state.get("watchdog")
+    if watchdog is not None:
+        runner.watchdog.load_state(watchdog)
+    learning, learned = runner.learning, state.get("learning")
     if (learning is None) != (learned is None):
         raise ValueError(
             "learning.enabled: the checkpoint was written in "

@@ -18,7 +18,8 @@ Columns:
   because the agent was switched out), the partner robot (``MATE``), the agent's age
   (``DEATH``), the :class:`evolution.agent.Origin` of the new agent (``BIRTH``; ``OFFSPRING`` =
   an EE offspring, ``SELECTED`` = a CE offspring, ``RECEIVED`` = mEDEA's), the sender
-  (``RECEIVE``), 0 (``LISTEN``).
+  (``RECEIVE``), 0 (``LISTEN``, ``TIPPED``, ``STUCK``), the control steps the trouble lasted
+  (``TIPPED_END``, ``STUCK_END``), what the rescue ended (``RESCUE``: 1 tipped, 2 stuck).
 """
 
 from __future__ import annotations
@@ -49,6 +50,11 @@ class EventKind(enum.IntEnum):
     BIRTH = 4  #: a new agent took over a slot (value: its Origin)
     RECEIVE = 5  #: mEDEA: the robot first received a genome from a sender (value: the sender)
     LISTEN = 6  #: mEDEA: the robot fell silent, listening, having received none (value: 0)
+    TIPPED = 7  #: the watchdog: the robot tipped past survival.tip_uprightness (value: 0)
+    TIPPED_END = 8  #: it is upright again (value: the control steps it was tipped)
+    STUCK = 9  #: the watchdog: the robot got stuck (value: 0)
+    STUCK_END = 10  #: it moves again (value: the control steps it was stuck)
+    RESCUE = 11  #: survival.rescue set the robot upright at a free spot (value: 1 tipped, 2 stuck)
 
 
 class EventLog:
@@ -98,6 +104,30 @@ class EventLog:
         births = rows[rows[:, 2] == EventKind.BIRTH]
         made = (Origin.OFFSPRING, Origin.SELECTED, Origin.RECEIVED)
         return int(np.isin(births[:, 5], made).sum())
+
+    def watchdog(self, generation_steps: list[int]) -> list[dict[str, int]]:
+        """Per closed generation (the steps after the previous one closed, up to its own), what
+        the watchdog saw: tips and jams that began, robot-steps spent tipped and stuck (of the
+        troubles that ended in it, or that go on past its end), rescues, and the robots
+        concerned (a bit mask is impractical past 63 robots, so their count)."""
+        rows = self._rows[: self._n]
+        kinds = rows[:, 2]
+        table = []
+        start = 0
+        for generation, end in enumerate(generation_steps):
+            inside = (rows[:, 0] > start) & (rows[:, 0] <= end)
+            row = {"generation": generation}
+            for name, kind in (("tips", EventKind.TIPPED), ("jams", EventKind.STUCK),
+                               ("rescues", EventKind.RESCUE)):  # fmt: skip
+                row[name] = int(np.count_nonzero(inside & (kinds == kind)))
+            for name, kind in (("tipped_steps", EventKind.TIPPED_END),
+                               ("stuck_steps", EventKind.STUCK_END)):  # fmt: skip
+                row[name] = int(rows[inside & (kinds == kind), 5].sum())
+            troubled = inside & np.isin(kinds, (EventKind.TIPPED, EventKind.STUCK))
+            row["robots"] = int(len(np.unique(rows[troubled, 1])))
+            table.append(row)
+            start = end
+        return table
 
     def to_frame(self) -> pd.DataFrame:
         """The log as a ``DataFrame`` with a ``kind`` column of names (``"dock"``, ...)."""

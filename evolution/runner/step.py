@@ -49,6 +49,7 @@ from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, 
 from cyber_rodent.commands import COMMAND_SPEEDS
 from cyber_rodent.profiles import ActuatorSample, RangeSensorNoise, apply_actuators
 from cyber_rodent.survival import SurvivalWorld
+from cyber_rodent.survival.watchdog import Watchdog
 from cyber_rodent.validation import check_integer
 from cyber_rodent.vision import GeometricVision, make_provider
 from evolution.controller import NeuralController
@@ -203,6 +204,15 @@ class EvolutionRunner:
             led=np.zeros(n, dtype=np.bool_),
             mate=np.zeros(n, dtype=np.bool_),
         )
+        rules = config.survival
+        #: finds tipped and stuck robots every step; rescues them if ``survival.rescue``
+        self.watchdog = Watchdog(
+            self.world, self.action.wheels, self.survival.docked,
+            self.survival.reflex_steps_left, self.scheduler.active,
+            tip_uprightness=rules.tip_uprightness, stuck_steps=rules.stuck_steps,
+            stuck_distance=rules.stuck_distance, rescue=rules.rescue,
+            rescue_after_steps=rules.rescue_after_steps, backend=backend,
+        )  # fmt: skip
         self.events = EventLog()
         self.steps = 0
         self.generation_steps: list[int] = []
@@ -296,6 +306,9 @@ class EvolutionRunner:
             learning.observe(events, scheduler.age_view)
         if events.any:
             self._log_world_events(events)
+        watched = self.watchdog.observe()  # tipped and stuck robots (None: no change)
+        if watched is not None:
+            self._log_watchdog(watched)
         if self.scheme.broadcasts:  # genomes sent to the robots in range (mEDEA)
             self._broadcast()
         # schedule: ageing, time sharing, matings, deaths, offspring
@@ -380,6 +393,26 @@ class EvolutionRunner:
                 s = int(slot[robot])
                 log.append(step, robot, EventKind.DEATH, s, int(generation[robot, s]),
                            int(age[robot]) + 1)  # fmt: skip
+
+    def _log_watchdog(self, watched: Any) -> None:
+        """Append the step's tips, jams and rescues (rare)."""
+        scheduler, log, step = self.scheduler, self.events, self.steps
+        slot, generation = scheduler.active_slot, scheduler.slot_generation
+
+        def add(robot: int, kind: EventKind, value: int) -> None:
+            s = int(slot[robot])
+            log.append(step, robot, kind, s, int(generation[robot, s]), value)
+
+        for robot in watched.tip_started:
+            add(robot, EventKind.TIPPED, 0)
+        for robot, steps in watched.tip_ended:
+            add(robot, EventKind.TIPPED_END, steps)
+        for robot in watched.stuck_started:
+            add(robot, EventKind.STUCK, 0)
+        for robot, steps in watched.stuck_ended:
+            add(robot, EventKind.STUCK_END, steps)
+        for robot, trouble in watched.rescued:
+            add(robot, EventKind.RESCUE, int(trouble))
 
     def _broadcast(self) -> None:
         """Hand the scheduler which robots' IR ports are within broadcast range of which."""
@@ -485,7 +518,18 @@ class EvolutionRunner:
             "deaths": counts["death"],
             "births": counts["birth"],
             "offspring": self.events.offspring(),
+            "tips": counts["tipped"],
+            "jams": counts["stuck"],
+            "rescues": counts["rescue"],
+            "troubled_robots": self.troubled_robots(),
         }
+
+    def troubled_robots(self) -> list[int]:
+        """The robots the watchdog found tipped or stuck so far, in order."""
+        rows = self.events.array
+        kinds = rows[:, 2]
+        troubled = np.isin(kinds, (EventKind.TIPPED, EventKind.STUCK))
+        return sorted(set(rows[troubled, 1].tolist()))
 
     # --- checkpoints (evolution.runner.checkpoints) ---------------------------------------
     def state(self) -> dict[str, Any]:
