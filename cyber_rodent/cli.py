@@ -6,6 +6,10 @@ together; it imports them lazily inside each sub-command so ``--help`` stays fas
 ``cyber-rodent COMMAND: error: ...``, and exit with status 2, never a traceback or a usage
 block; every input is checked before a file or directory is created. ``--help`` shows every
 option's default.
+
+``--plugin MODULE_OR_FILE`` (``evolve``, ``resume``, ``sweep``, ``config``) loads a user's code
+that registers a controller, an input or a task (:mod:`cyber_rodent.plugins`) before any other
+option is checked, so ``--set evolution.controller=NAME`` accepts the controller it registers.
 """
 
 from __future__ import annotations
@@ -20,6 +24,8 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 if TYPE_CHECKING:  # pandas is slow to import; ``--help`` must stay fast
     import pandas as pd
+
+    from cyber_rodent.plugins import Plugin
 
 EXIT_USAGE = 2
 
@@ -193,6 +199,56 @@ def _cmd_train_behaviours(args: argparse.Namespace) -> int:
     return 0
 
 
+def _load_plugin(spec: str) -> Plugin:
+    """Load one ``--plugin``; a plugin that cannot be found or fails is one line naming
+    ``--plugin``."""
+    from cyber_rodent.plugins import PluginError, load_plugin
+
+    try:
+        return load_plugin(spec)
+    except PluginError as err:
+        raise CliError(f"--plugin {err}") from None
+
+
+def _load_plugins(args: argparse.Namespace) -> tuple[Plugin, ...]:
+    """Load every ``--plugin`` of the command line, in order (before any setting is read)."""
+    return tuple(_load_plugin(spec) for spec in args.plugin)
+
+
+#: What plugins may register, by the word ``config`` lists them with.
+_REGISTRY_KINDS = ("controller", "input", "task", "scheme")
+
+
+def _registered() -> dict[str, tuple[str, ...]]:
+    """The names in each registry plugins may add to, by :data:`_REGISTRY_KINDS`."""
+    from cyber_rodent.tasks.spec import task_names
+    from evolution.controllers import controller_names
+    from evolution.input_kernels import available_inputs
+    from evolution.schemes import scheme_names
+
+    return {
+        "controller": controller_names(),
+        "input": tuple(row.name for row in available_inputs()),
+        "task": task_names(),
+        "scheme": scheme_names(),
+    }
+
+
+def _plugins_section(added: Sequence[tuple[Plugin, dict[str, tuple[str, ...]]]]) -> str:
+    """The ``config`` listing of what each plugin registered, as TOML comments."""
+    lines = [
+        "# registered by plugins (a --config file names them, but does not load them: give the",
+        "# same --plugin again wherever you use this file):",
+    ]
+    for plugin, names in added:
+        found = [(kind, name) for kind in _REGISTRY_KINDS for name in names[kind]]
+        if not found:
+            lines.append(f"#   nothing registered by {plugin.name}")
+        for kind, name in found:
+            lines.append(f"#   {kind} {name}  (plugin {plugin.name})")
+    return "\n".join(lines) + "\n"
+
+
 def _settings(args: argparse.Namespace) -> dict[str, Any]:
     """The settings of ``--config FILE`` then ``--set KEY=VALUE`` (later ones win)."""
     from evolution.runner import settings
@@ -205,14 +261,28 @@ def _cmd_config(args: argparse.Namespace) -> int:
     from evolution.lab.api import make_config
     from evolution.runner.settings import to_toml
 
+    added: list[tuple[Plugin, dict[str, tuple[str, ...]]]] = []
+    if args.plugin:
+        before = _registered()
+        for spec in args.plugin:
+            plugin = _load_plugin(spec)
+            after = _registered()
+            new = {kind: tuple(n for n in after[kind] if n not in before[kind]) for kind in after}
+            added.append((plugin, new))
+            before = after
     config = make_config(args.method, **_settings(args))
-    sys.stdout.write(to_toml(config, method=args.method))
+    text = to_toml(config, method=args.method)
+    if added:  # after the header: the file stays a valid --config file
+        header, _, rest = text.partition("\n\n")
+        text = f"{header}\n\n{_plugins_section(added)}\n{rest}"
+    sys.stdout.write(text)
     return 0
 
 
 def _cmd_evolve(args: argparse.Namespace) -> int:
     from evolution.lab import experiment
 
+    plugins = _load_plugins(args)  # before the settings, which may name what they register
     overrides = _settings(args)
     out = args.out if args.out is not None else experiment.default_out_dir(args.method, args.seed)
     try:
@@ -231,6 +301,7 @@ def _cmd_evolve(args: argparse.Namespace) -> int:
             progress=not args.no_progress,
             argv=sys.argv,
             tensorboard=args.tensorboard,
+            plugins=plugins,
         )
     except KeyboardInterrupt:
         print(
@@ -315,14 +386,22 @@ def _cmd_transfer(args: argparse.Namespace) -> int:
 
 
 def _cmd_resume(args: argparse.Namespace) -> int:
+    from cyber_rodent.plugins import PluginError, identify
     from evolution.lab import experiment
 
+    given = None
+    if args.plugin:  # found and hashed, not run: resume loads the run's recorded plugins
+        try:
+            given = [identify(spec) for spec in args.plugin]
+        except PluginError as err:
+            raise CliError(f"--plugin {err}") from None
     try:
         path, table = experiment.resume_run(
             args.dir,
             progress=not args.no_progress,
             generations=args.generations,
             tensorboard=args.tensorboard,
+            plugins=given,
         )
     except KeyboardInterrupt:
         print(
@@ -346,6 +425,7 @@ def _duration(seconds: float) -> str:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
+    from cyber_rodent.plugins import plugin_source
     from cyber_rodent.validation import check_integer
     from evolution.lab import experiment
     from evolution.lab.grid import check_grid
@@ -353,12 +433,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         STEP_SECONDS,
         SweepSpec,
         check_ray_address,
+        check_sweep_plugins,
         parse_seeds,
         projected_seconds,
         sweep,
     )
     from evolution.runner.settings import parse_grid
 
+    plugins = _load_plugins(args)  # before the settings, which may name what they register
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     if args.max_steps is not None:
         from evolution.config import MAX_RUN_STEPS
@@ -372,10 +454,12 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         policies=args.policies,
         grid=parse_grid(args.grid),
         max_steps=args.max_steps,
+        plugins=tuple(plugin_source(plugin) for plugin in plugins),
     )
-    spec.check()  # every cell's settings, before anything is written
-    if args.resume:
+    if args.resume:  # the runs there were started with this grid and these plugins
         check_grid(args.out, spec.grid)
+        check_sweep_plugins(args.out, spec)
+    spec.check()  # every cell's settings, before anything is written
     experiment.policies_by_name(args.policies)  # the shipped values are installed
     if args.workers is not None:
         check_integer("--workers", args.workers, 1, 4096)
@@ -387,7 +471,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
         check_tensorboard(args.tensorboard)
     workers = args.workers or os.cpu_count() or 1
-    out = experiment.prepare_sweep_dir(args.out, resume=args.resume, force=args.force)
+    out = experiment.prepare_sweep_dir(
+        args.out, resume=args.resume, force=args.force, plugins=plugins
+    )
     seconds = projected_seconds(spec, workers)
     print(
         f"sweep: {len(spec.runs)} runs x {spec.generations} generations on {workers} "
@@ -482,6 +568,17 @@ def _add_setting_options(p: argparse.ArgumentParser) -> None:
         default=[],
         help="change one setting, e.g. --set survival.mate_distance=0.4 (repeatable; "
         "`cyber-rodent config` lists every key)",
+    )
+
+
+def _add_plugin_option(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument(
+        "--plugin",
+        action="append",
+        metavar="MODULE_OR_FILE",
+        default=[],
+        help="load your code first: a module (mylab.controllers) or a .py file that registers "
+        f"a controller, an input or a task when imported (repeatable); {what}",
     )
 
 
@@ -655,8 +752,8 @@ def build_parser(command: str | None = None) -> CliParser:
     evolve.add_argument(
         "--method",
         default="ee",
-        choices=("ee", "ce"),
-        help="ee: embodied evolution; ce: the centralised GA (the paper's baseline)",
+        help="the evolution scheme: ee, embodied evolution; ce, the centralised GA (the "
+        "paper's baseline); medea, mEDEA (one agent per robot); or one a plugin registered",
     )
     evolve.add_argument(
         "--generations",
@@ -683,6 +780,7 @@ def build_parser(command: str | None = None) -> CliParser:
     )
     _add_max_steps(evolve)
     _add_tensorboard(evolve, "in DIR/<name of --out>")
+    _add_plugin_option(evolve, "run.json records each one's name and content hash")
     _add_run_options(evolve)
     evolve.set_defaults(func=_cmd_evolve)
 
@@ -700,6 +798,11 @@ def build_parser(command: str | None = None) -> CliParser:
         help="new target (default: the run's own)",
     )
     _add_tensorboard(resume, "in DIR/<name of the run directory>")
+    _add_plugin_option(
+        resume,
+        "resume loads the plugins run.json records by itself (refusing one that is missing or "
+        "changed); where given, these must be the same",
+    )
     resume.add_argument("--no-progress", action="store_true", help=_NO_PROGRESS)
     resume.set_defaults(func=_cmd_resume)
 
@@ -713,7 +816,9 @@ def build_parser(command: str | None = None) -> CliParser:
         "runs the paper's Fig. 6 experiment (EE and CE x seeds 0-19 x 120 generations: "
         "hours); the projected run time is printed before the runs start.",
     )
-    sweep.add_argument("--methods", default="ee,ce", help="comma list of ee, ce")
+    sweep.add_argument(
+        "--methods", default="ee,ce", help="comma list of schemes (ee, ce, medea, a plugin's)"
+    )
     sweep.add_argument("--seeds", default="0-19", help="seeds: N, A-B or a comma list")
     sweep.add_argument(
         "--generations",
@@ -745,6 +850,10 @@ def build_parser(command: str | None = None) -> CliParser:
     )
     _add_max_steps(sweep)
     _add_tensorboard(sweep, "each run in DIR/<method>-seed<NNN> (with --grid: DIR/<cell>/...)")
+    _add_plugin_option(
+        sweep,
+        "every worker (local or Ray) loads it from its text, and each run.json records it",
+    )
     _add_run_options(sweep)
     sweep.set_defaults(func=_cmd_sweep)
 
@@ -755,8 +864,9 @@ def build_parser(command: str | None = None) -> CliParser:
         "then --set) as TOML: each setting with its meaning, allowed range, unit and source.",
     )
     config.add_argument(
-        "--method", default="ee", choices=("ee", "ce"), help="the method the config is for"
+        "--method", default="ee", help="the scheme the config is for (ee, ce, medea, ...)"
     )
+    _add_plugin_option(config, "lists what each one registered")
     _add_setting_options(config)
     config.set_defaults(func=_cmd_config)
 

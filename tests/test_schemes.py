@@ -267,3 +267,43 @@ def test_the_paper_schemes_are_untouched_by_the_new_settings() -> None:
     config = EvolutionConfig()
     assert config.spare_list == "robot" and config.medea == MedeaConfig()
     assert dataclasses.replace(config, spare_list="robot") == config
+
+
+# --- from the command line ------------------------------------------------------------------------
+def test_a_sweep_of_the_new_schemes_is_the_same_on_one_and_two_workers(tmp_path: Path) -> None:
+    """mEDEA and EE with one colony-wide spare list, 8 robots, one generation each: the same
+    files from one worker and from two, and a bad scheme is refused in one line."""
+    from cyber_rodent.cli import main
+
+    common = ["--seeds", "0-1", "--generations", "1", "--no-progress",
+              "--set", "evolution.n_robots=8", "--set", "world.field_size=3.3",
+              "--set", "world.n_packs=10", "--set", "evolution.lifetime_steps=60",
+              "--set", "evolution.time_sharing_steps=60"]  # fmt: skip
+    for name, extra in (("medea", ["--methods", "medea", "--set",
+                                   "evolution.population_size=8"]),
+                        ("pooled", ["--methods", "ee", "--set", "evolution.population_size=16",
+                                    "--set", "evolution.spare_list=colony"])):  # fmt: skip
+        outs = []
+        for workers in (1, 2):
+            out = tmp_path / f"{name}-{workers}"
+            assert main(["sweep", *common, *extra, "--workers", str(workers),
+                         "--out", str(out)]) == 0  # fmt: skip
+            outs.append(out)
+        runs = sorted(p.relative_to(outs[0]) for p in outs[0].rglob("*.csv"))
+        assert len(runs) >= 4
+        for relative in runs:
+            assert (outs[0] / relative).read_bytes() == (outs[1] / relative).read_bytes()
+    events = (tmp_path / "medea-1" / "medea-seed000" / "events.csv").read_text()
+    assert ",receive," in events and ",birth," in events
+
+
+def test_a_bad_scheme_is_refused_in_one_line(tmp_path: Path, capsys) -> None:
+    from cyber_rodent.cli import main
+
+    assert main(["evolve", "--method", "nope", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "method must be one of ee, ce, medea" in err
+    assert main(["evolve", "--method", "medea", "--out", str(tmp_path / "y")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "evolution.population_size (100) must equal" in err
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()

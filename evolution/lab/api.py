@@ -25,6 +25,11 @@ extra ``monitor``), with or without ``out_dir``; the results are the same either
 behaviour policies must match, else a :class:`~evolution.checkpoint.CheckpointError` and nothing
 is touched); the result is bit-identical to an uninterrupted run. Without ``resume`` an
 ``out_dir`` that already holds a run is refused, so results are never overwritten by accident.
+
+``plugins=(...)`` names the plugins (:mod:`cyber_rodent.plugins`) whose code the run uses (a
+controller, an input, a task they register): they are loaded first where this process has not
+loaded them yet, and ``run.json`` records each one's name, kind and content hash (runs without
+plugins keep the record they always had). A run is continued only with the plugins it records.
 """
 
 from __future__ import annotations
@@ -45,11 +50,11 @@ import numpy as np
 
 from behaviours import BehaviourPolicies
 from cyber_rodent.atomic import atomic_output, remove_stale_temporaries, write_text
+from cyber_rodent.plugins import Plugin, ensure_loaded, plugin_records, plugins_from_records, short
 from cyber_rodent.validation import check_integer
 from evolution.config import EvolutionConfig
 from evolution.lab.monitor import TensorBoardMonitor, check_tensorboard
 from evolution.runner import (
-    METHODS,
     EvolutionRunner,
     RunConfig,
     default_policies,
@@ -57,6 +62,7 @@ from evolution.runner import (
     policy_identity,
 )
 from evolution.runner.settings import FLAT_KEYS, apply, changed, settings
+from evolution.schemes import scheme
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -84,7 +90,8 @@ def make_config(
     """A :class:`RunConfig`: ``config`` (default: the paper's) with ``method`` and overrides.
 
     Args:
-        method: ``"ee"`` or ``"ce"``.
+        method: the evolution scheme: ``"ee"``, ``"ce"``, ``"medea"`` or a registered one
+            (:mod:`evolution.schemes`), checked against the config the overrides make.
         config: a base run or evolution config.
         **overrides: settings by dotted key (``**{"survival.mate_distance": 0.4}``) or by the
             flat names of earlier versions (``population_size=20``); see
@@ -94,17 +101,18 @@ def make_config(
         ValueError: an unknown method or override name (the message names the closest valid
             keys), or an invalid value (the message names the key and its allowed range).
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    scheme(method)  # an unknown scheme, in one line listing them
+    # The settings first, under the paper's EE (which takes any colony), then the scheme, which
+    # is checked against the config the settings made (mEDEA wants one agent per robot).
     if config is None:
-        base = RunConfig(method=method)
+        base = RunConfig()
     elif isinstance(config, EvolutionConfig):
-        base = RunConfig(method=method, evolution=config)
+        base = RunConfig(evolution=config)
     elif isinstance(config, RunConfig):
-        base = config.replace(method=method)
+        base = config.replace(method="ee")
     else:
         raise ValueError(f"config must be a RunConfig or EvolutionConfig, got {type(config)!r}")
-    return apply(base, overrides)
+    return apply(base, overrides).replace(method=method)
 
 
 def check_run_config(config: RunConfig) -> None:
@@ -138,6 +146,7 @@ def run(
     progress: bool = False,
     versions: dict[str, Any] | None = None,
     tensorboard: str | os.PathLike[str] | None = None,
+    plugins: Sequence[Plugin] = (),
     **overrides: Any,
 ) -> pd.DataFrame:
     """Run EE or CE for ``generations`` generations and return the statistics table.
@@ -164,6 +173,9 @@ def run(
             are written there as it closes (:mod:`evolution.lab.monitor`; a resumed run starts
             a new event file there, each generation appearing once). Needs the extra
             ``monitor``; checked before anything is created.
+        plugins: the plugins the run uses, loaded here first where they are not yet (so
+            overrides may name what they register), and recorded in ``run.json``; with
+            ``resume`` they must be those the run's record names.
         **overrides: config fields, see :func:`make_config`.
 
     Returns:
@@ -173,11 +185,16 @@ def run(
         ValueError: bad arguments or overrides (population not divisible by robots,
             probabilities outside [0, 1], ...), or an ``out_dir`` holding another run without
             ``resume``, or a ``tensorboard`` directory that cannot be written or without the
-            ``tensorboard`` package.
+            ``tensorboard`` package, or ``resume`` with other plugins than the run records.
+        PluginError: a plugin is missing, changed or fails to load
+            (:class:`cyber_rodent.plugins.PluginError`, a ``ValueError``).
         CheckpointError: ``resume`` found a corrupt or incompatible checkpoint (nothing is
             modified).
         FileNotFoundError: no ``policies`` given and the trained values are not installed.
     """
+    plugins = tuple(plugins)
+    for plugin in plugins:
+        ensure_loaded(plugin)
     run_config = make_config(method, config, **overrides)
     check_run_config(run_config)
     if isinstance(generations, bool) or not isinstance(generations, int) or generations < 0:
@@ -202,6 +219,9 @@ def run(
     out = Path(out_dir)
     checkpoints = out / CHECKPOINT_DIR
     newest = latest_checkpoint(checkpoints)
+    previous = read_record(out / RUN_FILE) if resume else None
+    if previous is not None:
+        check_plugins(previous, plugins, out / RUN_FILE)
     if resume and newest is not None:
         remove_stale_temporaries(checkpoints)
         runner = EvolutionRunner.from_checkpoint(newest, policies, expect=(run_config, seed))
@@ -213,8 +233,9 @@ def run(
             )
         runner = EvolutionRunner(run_config, seed, policies)
     with runner:
-        previous = read_record(out / RUN_FILE) if resume else None
-        if previous is not None and is_final_record(previous, runner, generations, max_steps):
+        if previous is not None and is_final_record(
+            previous, runner, generations, max_steps, plugins
+        ):
             # Finished and fully written: every file stays as it is, the record included, so
             # it keeps the commit that made the run.
             return runner.statistics()
@@ -223,7 +244,7 @@ def run(
         if versions is not None:
             text = json.dumps(versions, indent=2, sort_keys=True, default=repr) + "\n"
             write_text(out / VERSIONS_FILE, text)
-        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps, earlier))
+        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps, earlier, plugins))
         with monitoring(board, runner) as monitor:
 
             def write_results(r: EvolutionRunner) -> None:
@@ -243,7 +264,7 @@ def run(
         write_tables(out, table, robot_table(runner), learning_table(runner))
         with atomic_output(out / EVENTS_FILE) as temp:
             runner.events.write_csv(temp)
-        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps, earlier))
+        _write_json(out / RUN_FILE, run_record(runner, generations, max_steps, earlier, plugins))
     return table
 
 
@@ -291,13 +312,16 @@ def run_record(
     generations: int,
     max_steps: int | None = None,
     earlier: Sequence[str] = (),
+    plugins: Sequence[Plugin] = (),
 ) -> dict[str, Any]:
     """The content of ``run.json``: config, the settings changed from the paper's defaults,
     seed, policies, target (generations, and the step budget if one was set), versions and
-    source commit, summary.
+    source commit, summary, and the plugins the run loaded.
 
     ``earlier``: the other commits that advanced the run before this one, oldest first
     (:func:`earlier_commits`); recorded as ``versions.earlier_commits`` when there are any.
+    ``plugins``: recorded as ``plugins``, a list of ``{"name", "kind", "sha256"}``
+    (:meth:`cyber_rodent.plugins.Plugin.record`), when there are any.
     """
     record: dict[str, Any] = {
         "config": dataclasses.asdict(runner.config),
@@ -317,7 +341,40 @@ def run_record(
         record["max_steps"] = max_steps
     if earlier:  # a run resumed under other code says so
         record["versions"]["earlier_commits"] = list(earlier)
+    if plugins:  # runs without plugins keep the record they always had
+        record["plugins"] = plugin_records(plugins)
     return record
+
+
+def recorded_plugins(record: Mapping[str, Any], where: Path | str = RUN_FILE) -> tuple[Plugin, ...]:
+    """The plugins a run record names (none for a record without ``plugins``).
+
+    Raises:
+        ValueError: its ``plugins`` is malformed (the message names ``where``).
+    """
+    return plugins_from_records(record.get("plugins"), f"{where}: plugins")
+
+
+def describe_plugins(plugins: Sequence[Plugin]) -> str:
+    """Plugins in words, for messages: ``a.py (sha256 0123456789ab), mylab.x (...)``."""
+    if not plugins:
+        return "none"
+    return ", ".join(f"{p.name} (sha256 {short(p.sha256)})" for p in plugins)
+
+
+def check_plugins(record: Mapping[str, Any], plugins: Sequence[Plugin], where: Path) -> None:
+    """Refuse to continue the run of ``record`` with other plugins than it records (the
+    order they are given in does not count).
+
+    Raises:
+        ValueError: one line naming ``where``, the recorded plugins and the given ones.
+    """
+    recorded = recorded_plugins(record, where)
+    if set(recorded) != set(plugins):
+        raise ValueError(
+            f"{where} records the plugins {describe_plugins(recorded)}, but this run was given "
+            f"{describe_plugins(plugins)}; continue a run with the plugins it was started with"
+        )
 
 
 def read_record(path: Path) -> dict[str, Any] | None:
@@ -345,7 +402,11 @@ def earlier_commits(previous: Mapping[str, Any] | None) -> list[str]:
 
 
 def is_final_record(
-    previous: Mapping[str, Any], runner: EvolutionRunner, generations: int, max_steps: int | None
+    previous: Mapping[str, Any],
+    runner: EvolutionRunner,
+    generations: int,
+    max_steps: int | None,
+    plugins: Sequence[Plugin] = (),
 ) -> bool:
     """Is ``previous`` the final record of the run ``runner`` was restored to: the run reached
     its target (or spent its step budget) and the record, written last, says exactly that?"""
@@ -355,7 +416,9 @@ def is_final_record(
     )
     if not done:
         return False
-    fresh = json.loads(json.dumps(run_record(runner, generations, max_steps), default=repr))
+    fresh = json.loads(
+        json.dumps(run_record(runner, generations, max_steps, plugins=plugins), default=repr)
+    )
     return {k: v for k, v in previous.items() if k != "versions"} == {
         k: v for k, v in fresh.items() if k != "versions"
     }

@@ -7,7 +7,8 @@ A run directory holds everything needed to tell what produced what:
 
 - ``run.json``: the resolved config (human-readable JSON), the settings that differ from the
   paper's defaults by dotted key, seed, behaviour policies, target generations, package version
-  and git commit, and headline numbers (written by :func:`evolution.lab.api.run`);
+  and git commit, headline numbers, and the plugins the run loaded (name, kind and content hash;
+  written by :func:`evolution.lab.api.run`);
 - ``versions.json``: Python, this package and its dependencies' versions, the command line
   (written with ``run.json`` once the run is built);
 - ``statistics.csv``: the per-generation statistics table (pandas-readable);
@@ -18,7 +19,8 @@ A run directory holds everything needed to tell what produced what:
 Bad input is rejected before the directory is created, so it never leaves a half-made run
 directory behind; a directory that a run stopped during its start-up left anyway (an older
 version, a kill) is cleared by ``--force`` (:func:`stopped_while_starting`). An interrupted run
-is resumed with :func:`resume_run`, and its result is identical to an uninterrupted run's.
+is resumed with :func:`resume_run`, and its result is identical to an uninterrupted run's; it
+loads the plugins the run records again and refuses one that is missing or has changed.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ import platform
 import shlex
 import shutil
 import sys
+from collections.abc import Sequence
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -38,6 +41,15 @@ import pandas as pd
 
 from behaviours import BehaviourPolicies
 from cyber_rodent.atomic import TEMP_MARK, atomic_output, write_text
+from cyber_rodent.plugins import (
+    Plugin,
+    PluginMissing,
+    ensure_loaded,
+    identify,
+    load_plugin,
+    plugin_records,
+    short,
+)
 from cyber_rodent.validation import check_integer
 from evolution.checkpoint import read_header
 from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS
@@ -47,9 +59,11 @@ from evolution.lab.api import (
     STATISTICS_FILE,
     VERSIONS_FILE,
     check_run_config,
+    describe_plugins,
     holds_a_run,
     make_config,
     read_record,
+    recorded_plugins,
     run,
 )
 from evolution.lab.cells import write_cell_comparison
@@ -199,8 +213,15 @@ def _check_parent_writable(path: Path) -> None:
 SWEEP_FILE = "sweep.json"
 
 
-def prepare_sweep_dir(out: str | os.PathLike[str], *, resume: bool, force: bool) -> Path:
-    """Like :func:`prepare_out_dir`, for a sweep directory (marked by ``sweep.json``)."""
+def prepare_sweep_dir(
+    out: str | os.PathLike[str],
+    *,
+    resume: bool,
+    force: bool,
+    plugins: Sequence[Plugin] = (),
+) -> Path:
+    """Like :func:`prepare_out_dir`, for a sweep directory (marked by ``sweep.json``, which
+    records the environment and, where the sweep has any, its ``plugins``)."""
     if resume and force:
         raise ValueError("--resume and --force exclude each other")
     path = Path(out).expanduser()
@@ -222,6 +243,8 @@ def prepare_sweep_dir(out: str | os.PathLike[str], *, resume: bool, force: bool)
         shutil.rmtree(path)
     path.mkdir(parents=True, exist_ok=True)
     record = environment_versions()
+    if plugins:  # sweeps without plugins keep the record they always had
+        record["plugins"] = plugin_records(plugins)
     _write_json(path / SWEEP_FILE, record)
     return path
 
@@ -263,6 +286,7 @@ def evolve(
     progress: bool = True,
     argv: list[str] | None = None,
     tensorboard: str | os.PathLike[str] | None = None,
+    plugins: Sequence[Plugin] = (),
 ) -> tuple[Path, pd.DataFrame]:
     """Run (or continue) one EE/CE run in a run directory and draw its figures.
 
@@ -270,7 +294,8 @@ def evolve(
     are not complete (a population that cannot complete its generations: agents that learn
     from zero die before they mate). ``tensorboard=DIR`` writes each generation to TensorBoard
     as it closes, in ``DIR/<name of the run directory>`` (:mod:`evolution.lab.monitor`), so
-    that runs sharing ``DIR`` are overlaid.
+    that runs sharing ``DIR`` are overlaid. ``plugins`` are loaded first (where this process has
+    not yet), so the overrides may name what they register, and ``run.json`` records them.
 
     Everything is validated before the directory is touched, and the directory is created
     only once the run is built (:func:`evolution.lab.api.run` writes ``versions.json`` and
@@ -278,6 +303,7 @@ def evolve(
     """
 
     overrides = dict(overrides or {})
+    plugins = tuple(ensure_loaded(plugin) for plugin in plugins)  # before the settings
     check_run_config(make_config(method, **overrides))  # method, every override, their sizes
     check_integer("--generations", generations, 1, MAX_GENERATIONS)
     check_integer("--seed", seed, 0)
@@ -301,6 +327,7 @@ def evolve(
         progress=progress,
         versions=environment_versions(argv),
         tensorboard=None if board is None else board / path.resolve().name,
+        plugins=plugins,
         **overrides,
     )
     plot_run_dir(path)
@@ -331,12 +358,15 @@ def resume_run(
     progress: bool = True,
     generations: int | None = None,
     tensorboard: str | os.PathLike[str] | None = None,
+    plugins: Sequence[Plugin] | None = None,
 ) -> tuple[Path, pd.DataFrame]:
     """Continue an interrupted run in its directory to its target (or ``generations``).
 
     The config, seed and policies come from the run's newest checkpoint (or, before the first
     checkpoint, from ``run.json``), so the result is identical to an uninterrupted run.
     ``tensorboard=DIR`` monitors it in ``DIR/<name of the run directory>``, as :func:`evolve`.
+    The plugins ``run.json`` records are loaded again from their recorded module name or path
+    (:func:`load_run_plugins`); ``plugins`` (``--plugin``), where given, must name the same.
     """
 
     path = Path(out)
@@ -366,6 +396,7 @@ def resume_run(
         max_steps = None if budget is None else int(budget)
     except (KeyError, TypeError, ValueError) as err:
         raise ValueError(f"{path / RUN_FILE} is incomplete or malformed ({err!r})") from None
+    loaded = load_run_plugins(path, record, plugins)  # before the config names what they add
     chosen = policies_for_identity(identity)
     newest = latest_checkpoint(path / CHECKPOINT_DIR)
     if newest is not None:
@@ -384,9 +415,54 @@ def resume_run(
         max_steps=max_steps,
         progress=progress,
         tensorboard=None if board is None else board / path.resolve().name,
+        plugins=loaded,
     )
     plot_run_dir(path)
     return path, table
+
+
+def load_run_plugins(
+    path: Path, record: dict[str, Any], given: Sequence[Plugin] | None = None
+) -> tuple[Plugin, ...]:
+    """Load the plugins the run record of the run directory ``path`` names, from their
+    recorded module name or file path, checking each one's content against its recorded hash
+    before it runs.
+
+    Args:
+        path: the run directory.
+        record: its ``run.json``.
+        given: the plugins the user named (``--plugin``); None: none named. Where given, they
+            must be the ones the record names (in any order).
+
+    Raises:
+        ValueError: one line naming the plugin: ``given`` names other plugins than the record,
+            a recorded plugin is missing or its content has changed, or it fails to load.
+    """
+    where = path / RUN_FILE
+    recorded = recorded_plugins(record, where)
+    if given is not None:
+        names = {(p.kind, p.name) for p in given}
+        if names != {(p.kind, p.name) for p in recorded}:
+            raise ValueError(
+                f"--plugin must name the plugins {where} records ({describe_plugins(recorded)}), "
+                f"got {describe_plugins(tuple(given))}; resume loads the recorded ones by itself"
+            )
+    for plugin in recorded:
+        try:
+            current = identify(plugin.name)
+        except PluginMissing as err:
+            raise ValueError(
+                f"{where} records plugin {plugin.name}, which is missing ({err.cause}); "
+                "resume needs the plugins the run was started with"
+            ) from None
+        if current.sha256 != plugin.sha256:
+            raise ValueError(
+                f"{where} records plugin {plugin.name}, which has changed since (sha256 "
+                f"{short(plugin.sha256)} recorded, {short(current.sha256)} now); restore it, "
+                "or start a new run"
+            )
+        load_plugin(plugin.name, sha256=plugin.sha256)
+    return recorded
 
 
 def rerun_command(record: Path, flag: str) -> str:

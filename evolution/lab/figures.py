@@ -33,6 +33,7 @@ if TYPE_CHECKING:
 METHOD_STYLE = {
     "ee": ("Embodied evolution (EE)", "#1f4fd1"),
     "ce": ("Centralised evolution (CE)", "#d1261f"),
+    "medea": ("mEDEA", "#2a9d4b"),
 }
 FIGURE_FORMATS = ("png", "pdf")
 

@@ -4,7 +4,8 @@
 survival.mate_consecutive_steps=1,3`` runs every cell of the product (here 3 × 2) for every
 method and seed. A cell is one combination of grid values; its runs live in
 ``<sweep>/<cell name>/<method>-seed<NNN>/`` and the sweep's ``grid.json`` lists the cells with
-their settings, so what a directory holds never has to be parsed from its name. How cells
+their settings (and the sweep's plugins, if it has any), so what a directory holds never has to
+be parsed from its name. How cells
 compare is :mod:`evolution.lab.cells`.
 """
 
@@ -13,12 +14,13 @@ from __future__ import annotations
 import itertools
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from cyber_rodent.atomic import write_text
+from cyber_rodent.plugins import PluginSource, plugin_records
 
 GRID_FILE = "grid.json"
 
@@ -69,12 +71,16 @@ def cells(grid: Grid) -> tuple[Cell, ...]:
     return tuple(found)
 
 
-def grid_record(grid: Grid) -> dict[str, Any]:
-    """The content of ``grid.json``."""
-    return {
+def grid_record(grid: Grid, plugins: Sequence[PluginSource] = ()) -> dict[str, Any]:
+    """The content of ``grid.json``; ``plugins``: the sweep's, recorded as ``plugins`` (name,
+    kind, content hash) when there are any."""
+    record: dict[str, Any] = {
         "grid": [[key, list(values)] for key, values in grid],
         "cells": [{"name": c.name, "settings": dict(c.settings)} for c in cells(grid)],
     }
+    if plugins:
+        record["plugins"] = plugin_records(plugins)
+    return record
 
 
 def read_grid(path: str | os.PathLike[str]) -> Grid | None:
@@ -114,7 +120,9 @@ def check_grid(path: str | os.PathLike[str], grid: Grid) -> None:
         )
 
 
-def write_grid(path: str | os.PathLike[str], grid: Grid) -> None:
+def write_grid(
+    path: str | os.PathLike[str], grid: Grid, plugins: Sequence[PluginSource] = ()
+) -> None:
     """Write ``grid.json`` (atomically) into the sweep directory."""
-    record = grid_record(grid)
+    record = grid_record(grid, plugins)
     write_text(Path(path) / GRID_FILE, json.dumps(record, indent=2, default=repr) + "\n")

@@ -42,6 +42,12 @@ small fraction of a generation. Runs under way continue before new ones start, s
 stopped part-way has whole seeds done. Worker nodes need the package installed (the same
 version: checkpoints record it), not the driver's directories.
 
+Plugins: a sweep's plugins (:attr:`SweepSpec.plugins`, ``--plugin`` on the command line: code
+that registers a controller, an input or a task, :mod:`cyber_rodent.plugins`) travel with each
+run as their source text and hash. A local worker or a Ray task loads them (checking the text
+against the hash) before it builds its run, so neither needs the plugin's file, and every run
+records them in its ``run.json``. A sweep is continued only with the plugins its runs record.
+
 Monitoring: with ``tensorboard=DIR`` every run writes each generation to TensorBoard as it
 closes (:mod:`evolution.lab.monitor`), in ``DIR/<method>-seed<NNN>`` (``DIR/<cell>/...`` in a
 grid), so that ``tensorboard --logdir DIR`` overlays the runs. Local workers write their run's
@@ -74,16 +80,19 @@ from typing import Any, NamedTuple
 
 import pandas as pd
 
+from cyber_rodent.plugins import PluginSource
 from cyber_rodent.validation import check_integer, choice, validate_fields
 from evolution.checkpoint import CheckpointError
-from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS, METHODS
+from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS
 from evolution.lab.api import (
     CHECKPOINT_DIR,
     EVENTS_FILE,
     RUN_FILE,
+    check_plugins,
     check_run_config,
     learning_table,
     make_config,
+    read_record,
     robot_table,
     run,
     run_record,
@@ -99,6 +108,7 @@ from evolution.lab.monitor import (
 from evolution.runner import EvolutionRunner, default_policies, latest_checkpoint
 from evolution.runner.checkpoints import prune_checkpoints
 from evolution.runner.settings import merge
+from evolution.schemes import scheme_names
 
 EXECUTORS = ("local", "ray")
 POLICIES = ("trained", "reactive")
@@ -147,7 +157,8 @@ class SweepSpec:
     """What a sweep runs.
 
     Attributes:
-        methods: subset of ``("ee", "ce")``.
+        methods: evolution schemes (``method``: ``ee``, ``ce``, ``medea`` or a registered
+            one), each run for every seed.
         seeds: the seeds, each run once per method (and cell).
         generations: generations per run.
         overrides: settings passed to every run (see :func:`evolution.lab.api.make_config`).
@@ -165,6 +176,9 @@ class SweepSpec:
             then cell, then method), the order in which the runs start (:attr:`runs`).
         members: run only these members of the sweep (each one of its runs), in the sweep's
             order; None: every run. What a caller passes to leave out runs it knows finished.
+        plugins: the plugins every run loads before it is built and records in its
+            ``run.json``, with their source (:func:`cyber_rodent.plugins.plugin_source`), so
+            that workers need not have their files.
     """
 
     methods: tuple[str, ...]
@@ -177,12 +191,18 @@ class SweepSpec:
     cell_list: tuple[Cell, ...] = ()
     order: str = choice("cell", RUN_ORDERS)
     members: tuple[SweepRun, ...] | None = None
+    plugins: tuple[PluginSource, ...] = ()
 
     def __post_init__(self) -> None:
         validate_fields(self)
-        if not self.methods or any(m not in METHODS for m in self.methods):
+        if not isinstance(self.plugins, tuple) or not all(
+            isinstance(p, PluginSource) for p in self.plugins
+        ):
+            raise ValueError(f"plugins must be a tuple of PluginSource, got {self.plugins!r}")
+        names = scheme_names()
+        if not self.methods or any(m not in names for m in self.methods):
             raise ValueError(
-                f"methods must be a non-empty subset of {METHODS}, got {self.methods!r}"
+                f"methods must be a non-empty subset of {names}, got {self.methods!r}"
             )
         if len(set(self.methods)) != len(self.methods):
             raise ValueError(f"methods must not repeat, got {self.methods!r}")
@@ -275,13 +295,16 @@ class SweepSpec:
         return merge(self.overrides, chosen.settings)
 
     def check(self) -> None:
-        """Build every cell's config for each of its methods, so a bad setting fails before
-        any run.
+        """Load the sweep's plugins here (once per process), then build every cell's config for
+        each of its methods, so a bad setting fails before any run.
 
         Raises:
             ValueError: the first setting a config refuses (one line naming the key).
+            PluginError: a plugin fails to load (:mod:`cyber_rodent.plugins`).
         """
 
+        for source in self.plugins:
+            source.load()
         for c in self.cells:
             for method in self.methods_of(c):
                 check_run_config(make_config(method, **self.settings_of(c.name)))
@@ -316,6 +339,20 @@ def run_dir(out_dir: str | os.PathLike[str], method: str, seed: int, cell: str =
     return Path(out_dir) / cell / f"{method}-seed{seed:03d}"
 
 
+def check_sweep_plugins(out_dir: str | os.PathLike[str], spec: SweepSpec) -> None:
+    """Refuse to continue a sweep whose runs record other plugins than ``spec`` has.
+
+    Raises:
+        ValueError: one line naming the first run whose ``run.json`` records other plugins.
+    """
+    given = tuple(source.plugin for source in spec.plugins)
+    for member in spec.runs:
+        path = run_dir(out_dir, *member) / RUN_FILE
+        record = read_record(path) if path.is_file() else None
+        if record is not None:
+            check_plugins(record, given, path)
+
+
 def run_one(
     method: str,
     seed: int,
@@ -326,18 +363,21 @@ def run_one(
     keep_checkpoints: int = KEEP_CHECKPOINTS,
     max_steps: int | None = None,
     tensorboard: str | None = None,
+    plugins: tuple[PluginSource, ...] = (),
 ) -> pd.DataFrame:
     """Run (or resume) one sweep member in its run directory; the local worker entry point.
 
     ``tensorboard``: the member's TensorBoard run directory (None: no monitoring).
+    ``plugins``: loaded first, from their text (checked against their hash).
     """
     from behaviours import BehaviourPolicies
 
+    loaded = tuple(source.load() for source in plugins)
     chosen = BehaviourPolicies.reactive() if policies == "reactive" else None
     return run(
         method, generations, seed, out_dir=out, resume=True, policies=chosen,
         keep_checkpoints=keep_checkpoints, max_steps=max_steps, tensorboard=tensorboard,
-        **overrides,
+        plugins=loaded, **overrides,
     )  # fmt: skip
 
 
@@ -354,6 +394,8 @@ class RunChunk(NamedTuple):
         max_steps: the run's step budget (None: none).
         monitor: return each closed generation's :class:`GenerationRecord` (for the driver's
             TensorBoard writer).
+        plugins: the run's plugins with their source text: the task loads them before it
+            builds the runner (no file of theirs is needed on the worker's node).
     """
 
     method: str
@@ -366,6 +408,7 @@ class RunChunk(NamedTuple):
     checkpoint: tuple[str, bytes] | None
     max_steps: int | None = None
     monitor: bool = False
+    plugins: tuple[PluginSource, ...] = ()
 
 
 class ChunkResult(NamedTuple):
@@ -397,9 +440,11 @@ def advance_run(task: RunChunk) -> ChunkResult:
 
     Raises:
         CheckpointError: the checkpoint is corrupt or belongs to another run.
+        PluginError: a plugin's text does not match its hash, or it fails to load.
     """
     from behaviours import BehaviourPolicies
 
+    plugins = tuple(source.load() for source in task.plugins)  # before the config names them
     config = make_config(task.method, **task.overrides)
     check_run_config(config)
     policies = (
@@ -442,7 +487,7 @@ def advance_run(task: RunChunk) -> ChunkResult:
             finished = completed >= task.generations or spent
             if finished:  # api.run writes the event log at the end
                 runner.events.write_csv(out / EVENTS_FILE)
-            record = run_record(runner, task.generations, task.max_steps)
+            record = run_record(runner, task.generations, task.max_steps, plugins=plugins)
         # The format of api.run's run.json (the tests compare the two byte for byte).
         (out / RUN_FILE).write_text(json.dumps(record, indent=2, sort_keys=True, default=repr))
         files = {
@@ -530,7 +575,8 @@ def projected_seconds(spec: SweepSpec, workers: int) -> float:
     for member in spec.runs:
         config = make_config(member.method, **spec.settings_of(member.cell))
         evo = config.evolution
-        steps = evo.subpopulation_size * evo.lifetime_steps * STEPS_PER_LIFE[member.method]
+        per_life = STEPS_PER_LIFE.get(member.method, STEPS_PER_LIFE["ee"])  # others: as EE
+        steps = evo.subpopulation_size * evo.lifetime_steps * per_life
         physics = config.survival.control_dt / config.world.timestep
         cost = STEP_SECONDS * physics / default_physics
         cost *= evo.n_robots / default.evolution.n_robots
@@ -646,15 +692,16 @@ def sweep(
     check_integer("keep_checkpoints", keep_checkpoints, 0)
     check_integer("chunk_generations", chunk_generations, 1)
 
-    spec.check()  # every cell's settings, before anything runs
+    out = Path(out_dir)
+    check_grid(out, spec.grid)
+    check_sweep_plugins(out, spec)
+    spec.check()  # the plugins, every cell's settings, before anything runs
     if executor == "ray":
         check_ray_address(ray_address)
     board = check_tensorboard(tensorboard, "tensorboard") if tensorboard is not None else None
-    out = Path(out_dir)
-    check_grid(out, spec.grid)
     out.mkdir(parents=True, exist_ok=True)
     if spec.grid:
-        write_grid(out, spec.grid)
+        write_grid(out, spec.grid, spec.plugins)
     bar = _Progress(spec, out, progress)
     try:
         if executor == "local":
@@ -703,6 +750,7 @@ def _sweep_local(
                     keep_checkpoints,
                     spec.max_steps,
                     None if board is None else str(run_dir(board, *member)),
+                    spec.plugins,
                 ): member
                 for member in todo
             }
@@ -762,6 +810,7 @@ class _RayPlan(NamedTuple):
             None if newest is None else (newest.name, newest.read_bytes()),
             self.spec.max_steps,
             self.tensorboard is not None,
+            self.spec.plugins,
         )
 
     def store(self, member: SweepRun, result: ChunkResult) -> None:
@@ -955,9 +1004,10 @@ def _raise_failures(errors: dict[SweepRun, BaseException]) -> None:
 
 
 def load_sweep(
-    out_dir: str | os.PathLike[str], methods: Sequence[str] = METHODS
+    out_dir: str | os.PathLike[str], methods: Sequence[str] | None = None
 ) -> dict[str, list[pd.DataFrame]]:
-    """Statistics tables of every run directory under ``out_dir``, grouped by method.
+    """Statistics tables of every run directory under ``out_dir``, grouped by method (every
+    scheme's, or only ``methods``).
 
     Also accepts a single run directory (one holding ``statistics.csv``).
     """
@@ -968,9 +1018,10 @@ def load_sweep(
     else:
         candidates = sorted(p for p in out.iterdir() if p.is_dir()) if out.is_dir() else []
     for path in candidates:
-        m = re.fullmatch(r"(ee|ce)-seed(\d+)", path.name)
+        m = re.fullmatch(r"([a-z][a-z0-9_]*)-seed(\d+)", path.name)
         method = m.group(1) if m else _method_of(path)
-        if method is not None and method in methods and (path / "statistics.csv").exists():
+        wanted = methods is None or method in methods
+        if method is not None and wanted and (path / "statistics.csv").exists():
             found.setdefault(method, []).append(pd.read_csv(path / "statistics.csv"))
     return found
 
