@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import os
 import sys
 from collections.abc import Callable, Mapping, Sequence
@@ -119,7 +120,9 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
     from cyber_rodent.world import World, WorldConfig
 
     check_writable_output(args.out)  # fail before any expensive work
-    config = WorldConfig(field_size=args.field_size, n_robots=args.robots, n_packs=args.packs)
+    config = WorldConfig(
+        field_size=args.field_size, n_robots=args.robots, n_packs=args.packs, arenas=args.arenas
+    )
     world = World(config, np.random.default_rng(args.seed))
     if args.robot is not None and not 0 <= args.robot < config.n_robots:
         raise CliError(f"--robot must be in [0, {config.n_robots - 1}], got {args.robot}")
@@ -131,7 +134,7 @@ def _cmd_snapshot(args: argparse.Namespace) -> int:
         out = save_omni_png(world, args.robot, args.out)
     else:
         background = None if args.plain else BACKGROUND_RGB
-        size = default_image_size(config.field_size) if args.size is None else args.size
+        size = default_image_size(config.extent) if args.size is None else args.size
         with FieldRenderer(world, size, size, background=background) as renderer:
             if args.robot is not None:
                 image = renderer.robot_view(args.robot)
@@ -331,7 +334,25 @@ def _report_run(path: Path, table: pd.DataFrame) -> None:
             f"completed the survival task, batteries {last['batteries_mean']:.1f}, "
             f"matings {last['matings_mean']:.2f}"
         )
+    print(_watchdog_line(path))
     print(f"run directory: {path}  (statistics.csv, events.csv, figures/, checkpoints/)")
+
+
+def _watchdog_line(path: Path) -> str:
+    """What the watchdog saw in the run, in one line, naming the robots (from run.json)."""
+    try:
+        summary = json.loads((path / "run.json").read_text()).get("summary", {})
+    except (OSError, ValueError):
+        return "watchdog: no record"
+    tips, jams = int(summary.get("tips", 0)), int(summary.get("jams", 0))
+    if not tips and not jams:
+        return "watchdog: no robot tipped over or got stuck"
+    robots = ", ".join(map(str, summary.get("troubled_robots", [])))
+    rescues = int(summary.get("rescues", 0))
+    return (
+        f"watchdog: {_count(tips, 'tip')} and {_count(jams, 'jam')} (robots {robots}), "
+        f"{_count(rescues, 'rescue')}; see events.csv and watchdog.csv"
+    )
 
 
 def _cmd_transfer(args: argparse.Namespace) -> int:
@@ -665,6 +686,14 @@ def build_parser(command: str | None = None) -> CliParser:
         default=2.3,
         help="side of the square field in m (the paper's: 2.3; at its density N robots need "
         "2.3 x sqrt(N / 4), e.g. --robots 100 --packs 125 --field-size 11.5)",
+    )
+    snap.add_argument(
+        "--arenas",
+        type=_int_arg("--arenas"),
+        default=1,
+        help="copies of the field side by side, each with its own walls, --robots / N robots "
+        "and --packs / N packs (the paper's: 1; 25 copies of its world: --robots 100 --packs "
+        "125 --arenas 25)",
     )
     snap.add_argument(
         "--size",

@@ -229,7 +229,9 @@ def label_scale(height: int, px_per_m: float) -> float:
 def default_image_size(field_size: float, base: int = 640, most: int = 2048) -> int:
     """Side (px) of a top-down snapshot of a field of side ``field_size`` (m): ``base`` for
     the paper's 2.3 m field and at least as many pixels per metre for a larger one, up to
-    ``most``."""
+    ``most``. For a world of several arenas pass the side of their layout,
+    ``WorldConfig.extent``, which the top-down camera frames (25 arenas of 2.3 m: 13.1 m,
+    2048 px)."""
     return int(min(most, max(base, round(base * field_size / C.FIELD_SIZE))))
 
 

@@ -9,6 +9,9 @@ Assembly uses ``dm_control.mjcf`` (the pattern of dm_control's walkers: one XML 
 attached with a name prefix), so the same compiled model also backs a ``dm_control`` ``Physics``
 for the tasks. Placement is re-drawn at :meth:`World.reset` without recompiling: robots are free
 bodies (qpos), packs are static bodies (``model.body_pos``).
+
+A world may hold several copies of the field side by side (``WorldConfig.arenas``, each with its
+own walls and its share of the robots and packs: :func:`lay_out_arenas`, docs/design.md §9.33).
 """
 
 from __future__ import annotations
@@ -59,6 +62,16 @@ MAX_FIELD_SIZE = 50.0
 #: vision keeps arrays of robots x targets, so much larger colonies are a different program.
 MAX_ROBOTS = 200
 MAX_PACKS = 300
+#: Bound of ``WorldConfig.arenas``: every arena holds at least one robot.
+MAX_ARENAS = MAX_ROBOTS
+#: m, thickness of the arena file's walls (each wall box is 0.05 m half thick, its inner face on
+#: the field's edge); a test checks it against the compiled model.
+WALL_THICKNESS = 0.1
+#: m, the floor between the outer faces of two neighbouring arenas' walls
+#: (``WorldConfig.arenas``): enough to tell the arenas apart in a top-down image. Nothing
+#: crosses it: a robot sees only its own arena's targets (the walls hide the others too), and
+#: IR mating pairs only robots of one arena (docs/design.md §9.33).
+ARENA_GAP = 0.2
 
 
 def _usable_area(field_size: float) -> float:
@@ -204,26 +217,91 @@ def smallest_field(
     return size
 
 
+# --- arenas: copies of the field side by side (WorldConfig.arenas) ------------------------------
+def arena_grid(arenas: int) -> tuple[int, int]:
+    """(columns, rows) of the grid the arenas are laid out in: ceil(sqrt(arenas)) columns,
+    filled row by row from the top left (25 arenas: 5 x 5; 2: 2 x 1; 5: 3 x 2, the last row
+    part filled)."""
+    columns = math.isqrt(arenas - 1) + 1
+    return columns, -(-arenas // columns)
+
+
+def arena_pitch(field_size: float) -> float:
+    """Distance between the centres of two neighbouring arenas (m): a field, both arenas'
+    walls and the gap between them (:data:`ARENA_GAP`); 2.7 m for the paper's field."""
+    return field_size + 2 * WALL_THICKNESS + ARENA_GAP
+
+
+def arena_centres(arenas: int, field_size: float) -> np.ndarray:
+    """(arenas, 2) x, y of each arena's centre (m): a grid of :func:`arena_grid`, arena 0 at
+    the top left (largest y, smallest x), the next to its right, rows downwards, the whole
+    layout centred on the origin (one arena: at the origin)."""
+    columns, rows = arena_grid(arenas)
+    pitch = arena_pitch(field_size)
+    a = np.arange(arenas)
+    x = (a % columns - (columns - 1) / 2) * pitch
+    y = ((rows - 1) / 2 - a // columns) * pitch
+    return np.column_stack([x, y]).astype(np.float64)
+
+
+def arena_extent(arenas: int, field_size: float) -> float:
+    """Side (m) of the square, centred on the origin, that holds every arena's field: the
+    field's side for one arena, else the fields of the longer side of the grid and the walls
+    and gaps between them. The geometric vision's grids and the top-down camera cover it."""
+    columns, rows = arena_grid(arenas)
+    return field_size + (max(columns, rows) - 1) * arena_pitch(field_size)
+
+
+def arena_wall_name(arena: int, wall: str) -> str:
+    """Name of arena ``arena``'s wall ``wall`` (one of ``constants.WALL_GEOMS``): arena 0's
+    walls keep the arena file's names, so the paper's one-arena world is unchanged."""
+    return wall if arena == 0 else f"{wall}_{arena}"
+
+
+def _layout_problem(config: WorldConfig) -> str:
+    """Why ``config``'s arenas cannot be laid out, in one line ("" if they can): the counts
+    must split evenly, and the layout must fit the largest field (:data:`MAX_FIELD_SIZE`)."""
+    arenas = config.arenas
+    for name, count in (("n_robots", config.n_robots), ("n_packs", config.n_packs)):
+        if count % arenas:
+            return (
+                f"{name} must be a multiple of arenas={arenas} (every arena holds "
+                f"{name} / arenas of them), got {count}"
+            )
+    extent = arena_extent(arenas, config.field_size)
+    if extent > MAX_FIELD_SIZE:
+        return (
+            f"arenas={arenas} of field_size={config.field_size:g} m make a layout "
+            f"{extent:.4g} m wide; it must be at most {MAX_FIELD_SIZE:g} m (the largest "
+            "field_size): fewer arenas or a smaller field_size"
+        )
+    return ""
+
+
 def _fit_problem(config: WorldConfig) -> str:
-    """Why ``config``'s robots and packs do not fit its field, in one line naming the fields
-    and what fits ("" if they fit)."""
-    n, k, size = config.n_robots, config.n_packs, config.field_size
+    """Why ``config``'s robots and packs do not fit its field (each arena's share, with
+    several arenas), in one line naming the fields and what fits ("" if they fit)."""
+    n, k, size = config.robots_per_arena, config.packs_per_arena, config.field_size
     gap, clearance = config.pack_gap, config.pack_wall_clearance
     if fits(n, k, size, gap, clearance):
         return ""
+    # With several arenas the counts are each arena's: name them by their fields.
+    robots, packs = "n_robots", "n_packs"
+    if config.arenas > 1:
+        robots, packs = "n_robots / arenas", "n_packs / arenas"
     need = smallest_field(n, k, gap, clearance)
     if not _packs_fit(k, gap, clearance, size):
         alone = most_packs(0, size, gap, clearance)
         return (
-            f"n_packs={k} packs do not fit in the field_size={size:g} m field with "
+            f"{packs}={k} packs do not fit in the field_size={size:g} m field with "
             f"pack_gap={gap} m and pack_wall_clearance={clearance} m: at most {max(alone, 0)} "
             f"fit; {n} robots and {k} packs need field_size >= {need:g} m (or a smaller "
             "pack_gap or pack_wall_clearance)"
         )
-    packs = most_packs(n, size, gap, clearance)
-    beside = f"{n} robots with at most {packs} packs" if packs >= 0 else f"fewer than {n} robots"
+    most = most_packs(n, size, gap, clearance)
+    beside = f"{n} robots with at most {most} packs" if most >= 0 else f"fewer than {n} robots"
     return (
-        f"n_robots={n} and n_packs={k} do not fit in the field_size={size:g} m field together "
+        f"{robots}={n} and {packs}={k} do not fit in the field_size={size:g} m field together "
         f"with pack_gap={gap} m: it holds {beside}, or {k} packs with at most "
         f"{most_robots(k, size, gap, clearance)} robots; {n} robots and {k} packs need "
         f"field_size >= {need:g} m"
@@ -261,12 +339,24 @@ class WorldConfig:
             and takes no new docking, but it is still a body that collides and hides what is
             behind it; a robot already docked onto it keeps recharging. 0, the default, is the
             paper's rule: packs are always available.
+        arenas: copies of the field, each with its own four walls, ``n_robots / arenas``
+            robots and ``n_packs / arenas`` packs (both must divide evenly; docs/design.md
+            §9.33). 1, the default, is the paper's world. They are laid out in a grid of
+            ceil(sqrt(arenas)) columns, filled row by row from the top left
+            (:func:`arena_centres`), the outer faces of neighbouring arenas' walls
+            :data:`ARENA_GAP` (0.2 m) apart, the whole centred on the origin, on one floor.
+            Robot r is in arena r // (n_robots / arenas), pack j in arena
+            j // (n_packs / arenas) (:attr:`World.robot_arena`, :attr:`World.pack_arena`).
+            Placement, the fit check and the camera's default range are each arena's; a
+            robot sees only its own arena's targets (the walls hide the others too) and IR
+            mating pairs only robots of one arena. Adds robots while each keeps the paper's
+            local world. The layout is at most :data:`MAX_FIELD_SIZE` wide.
 
     The counts are bounded by :data:`MAX_ROBOTS` and :data:`MAX_PACKS` and by what fits in
-    the field (:func:`fits`): the packs alone in the square the wall clearance leaves them,
-    and robots and packs together, each at the packing density the placement can still draw.
-    A combination that does not fit is refused with one line naming the fields, what the
-    field holds and the smallest field that holds it.
+    the field (:func:`fits`; with several arenas, what fits in each): the packs alone in the
+    square the wall clearance leaves them, and robots and packs together, each at the packing
+    density the placement can still draw. A combination that does not fit is refused with one
+    line naming the fields, what the field holds and the smallest field that holds it.
     """
 
     field_size: float = number(
@@ -282,17 +372,35 @@ class WorldConfig:
     pack_reactivation_steps: int = integer(
         0, 0, MAX_REACTIVATION_STEPS, unit="control steps", source="docs/design.md §9.26"
     )
+    arenas: int = integer(1, 1, MAX_ARENAS, unit="arenas", source="docs/design.md §9.33")
 
     def __post_init__(self) -> None:
         validate_fields(self)
-        problem = _fit_problem(self)
+        problem = _layout_problem(self) or _fit_problem(self)
         if problem:
             raise ValueError(problem)
 
     @property
     def diagonal(self) -> float:
-        """The field's diagonal, m (3.25 m for the paper's 2.3 m field)."""
+        """The field's diagonal, m (3.25 m for the paper's 2.3 m field); one arena's with
+        several."""
         return self.field_size * math.sqrt(2)
+
+    @property
+    def robots_per_arena(self) -> int:
+        """Robots in each arena: ``n_robots / arenas``."""
+        return self.n_robots // self.arenas
+
+    @property
+    def packs_per_arena(self) -> int:
+        """Packs in each arena: ``n_packs / arenas``."""
+        return self.n_packs // self.arenas
+
+    @property
+    def extent(self) -> float:
+        """Side of the square, centred on the origin, that holds every arena's field, m
+        (:func:`arena_extent`): ``field_size`` with one arena."""
+        return arena_extent(self.arenas, self.field_size)
 
 
 def resize_field(arena: mjcf.RootElement, field_size: float) -> None:
@@ -319,19 +427,68 @@ def resize_field(arena: mjcf.RootElement, field_size: float) -> None:
     camera.pos = [camera.pos[0], camera.pos[1], camera.pos[2] * (field_size / C.FIELD_SIZE)]
 
 
+def arena_body_name(arena: int) -> str:
+    """Name of the static body that carries arena ``arena``'s walls (several arenas only)."""
+    return f"arena_{arena}"
+
+
+def lay_out_arenas(arena: mjcf.RootElement, field_size: float, arenas: int) -> None:
+    """Turn the (resized) arena's one field into ``arenas`` copies side by side.
+
+    Each arena's four walls are the arena file's (their names: :func:`arena_wall_name`, arena
+    0's unchanged), carried by a static body of its own at the arena's centre
+    (:func:`arena_body_name`, :func:`arena_centres`). Not the world body: MuJoCo's broad phase
+    pairs a robot with a whole body, and with the midphase off (``arena.xml``) it then tests
+    the robot's geoms against each of that body's geoms, so one world body holding every
+    arena's walls doubled the collision cost at 25 arenas; a body per arena is paired only
+    with the robots near it. Static bodies never collide with each other or the floor. The
+    floor grows to the whole layout, and the top-down camera rises until the layout's extent
+    fills its view as one field did. With one arena nothing changes (the same model, bit for
+    bit).
+    """
+    if arenas == 1:
+        return
+    centres = arena_centres(arenas, field_size)
+    columns, rows = arena_grid(arenas)
+    pitch = arena_pitch(field_size)
+    walls = [arena.find("geom", name) for name in C.WALL_GEOMS]
+    templates = [wall.get_attributes() for wall in walls]
+    for wall in walls:
+        wall.remove()
+    for a, (cx, cy) in enumerate(centres):
+        body = arena.worldbody.add("body", name=arena_body_name(a), pos=[cx, cy, 0.0])
+        for name, attributes in zip(C.WALL_GEOMS, templates, strict=True):
+            body.add("geom", **{**attributes, "name": arena_wall_name(a, name)})
+    floor = arena.find("geom", C.FLOOR_GEOM)
+    floor.size = [
+        floor.size[0] + (columns - 1) * pitch / 2,
+        floor.size[1] + (rows - 1) * pitch / 2,
+        floor.size[2],
+    ]
+    camera = arena.find("camera", C.TOP_CAMERA)
+    rise = arena_extent(arenas, field_size) / field_size
+    camera.pos = [camera.pos[0], camera.pos[1], camera.pos[2] * rise]
+
+
 def dock_hold_name(robot: int) -> str:
     """Name of robot ``robot``'s docking-hold weld (an equality constraint of the world)."""
     return f"dock_hold_{robot}"
 
 
 def build_mjcf(
-    n_robots: int, n_packs: int, timestep: float, field_size: float = C.FIELD_SIZE
+    n_robots: int,
+    n_packs: int,
+    timestep: float,
+    field_size: float = C.FIELD_SIZE,
+    arenas: int = 1,
 ) -> mjcf.RootElement:
     """The field's MJCF tree with ``n_robots`` robots and ``n_packs`` packs at the origin, in a
-    square field of side ``field_size`` (m)."""
+    square field of side ``field_size`` (m), or in ``arenas`` such fields side by side
+    (:func:`lay_out_arenas`)."""
     arena = mjcf.from_path(str(asset_path(C.ARENA_XML)))
     arena.option.timestep = timestep
     resize_field(arena, field_size)
+    lay_out_arenas(arena, field_size, arenas)
     # MuJoCo's arena holds the contacts, the constraint rows and the solver's stack. Measured
     # peaks (arena + stack, robots driving into one pile at the paper's density): 0.14 MB for
     # 4 robots, 3.0 MB for 100. 1 MB per robot, at least the arena file's 16 MB, leaves a
@@ -362,17 +519,28 @@ def build_mjcf(
 
 
 class World:
-    """N robots and M packs in the walled field, with fast per-step access.
+    """N robots and M packs in the walled field (or in several arenas), with fast per-step
+    access.
 
     Args:
         config: the physical setup.
         rng: generator for the initial placement; :meth:`reset` takes its own.
+
+    Attributes:
+        robot_arena: (n_robots,) int, the arena each robot is in: robots in contiguous blocks
+            of ``n_robots / arenas`` (robot r in arena r // (n_robots / arenas)); all 0 in the
+            paper's one-arena world.
+        pack_arena: (n_packs,) int, the arena each pack is in, packs likewise.
+        arena_centres: (arenas, 2) m, x, y of each arena's centre (:func:`arena_centres`).
+        wall_geom: (arenas, 4) int, each arena's wall geoms, in ``constants.WALL_GEOMS`` order.
     """
 
     def __init__(self, config: WorldConfig | None = None, rng: np.random.Generator | None = None):
         self.config = config or WorldConfig()
         cfg = self.config
-        self.mjcf_model = build_mjcf(cfg.n_robots, cfg.n_packs, cfg.timestep, cfg.field_size)
+        self.mjcf_model = build_mjcf(
+            cfg.n_robots, cfg.n_packs, cfg.timestep, cfg.field_size, cfg.arenas
+        )
         # dm_control evaluates the model once as compiled, every robot stacked at the origin
         # until reset() places them: with contacts on, each robot would touch every other
         # there (100 robots overflowed a 400 MB arena). Contacts are off for that evaluation
@@ -474,6 +642,15 @@ class World:
         #: (n_packs, 4) each pack body's own colour, restored when the pack is active again.
         self.pack_rgba = m.geom_rgba[self.pack_geom].astype(np.float64)
         self.top_camera = obj_id(mujoco.mjtObj.mjOBJ_CAMERA, C.TOP_CAMERA)
+        cfg = self.config
+        self.robot_arena = np.repeat(np.arange(cfg.arenas, dtype=np.int64), cfg.robots_per_arena)
+        self.pack_arena = np.repeat(np.arange(cfg.arenas, dtype=np.int64), cfg.packs_per_arena)
+        self.arena_centres = arena_centres(cfg.arenas, cfg.field_size)
+        walls = [
+            [obj_id(mujoco.mjtObj.mjOBJ_GEOM, arena_wall_name(a, w)) for w in C.WALL_GEOMS]
+            for a in range(cfg.arenas)
+        ]
+        self.wall_geom = np.array(walls, dtype=np.int64).reshape(cfg.arenas, len(C.WALL_GEOMS))
         # Wheel radius and top speed read from the compiled model (they must match constants).
         wheel_geom = obj_id(mujoco.mjtObj.mjOBJ_GEOM, C.robot_prefix(0) + "left_wheel_contact")
         self.wheel_radius = float(m.geom_size[wheel_geom, 0])
@@ -488,26 +665,33 @@ class World:
 
         Robots get uniformly random headings. Placement uses rejection sampling with clearance
         ``BODY_RADIUS`` / ``PACK_RADIUS`` plus a margin, from walls and from each other; packs
-        keep ``pack_gap`` between them and ``pack_wall_clearance`` from the walls. Every pack is
+        keep ``pack_gap`` between them and ``pack_wall_clearance`` from the walls. With several
+        arenas each is placed by the same rules in turn, arena 0 first (its robots and packs:
+        :attr:`robot_arena`, :attr:`pack_arena`), then every robot's heading. Every pack is
         active again.
         """
         mujoco.mj_resetData(self.model, self.data)
         cfg = self.config
         n, k = cfg.n_robots, cfg.n_packs
+        n_arena, k_arena = cfg.robots_per_arena, cfg.packs_per_arena
         radii = np.concatenate(
             [
-                np.full(n, C.BODY_RADIUS + _PLACEMENT_MARGIN),
-                np.full(k, _pack_placement_radius(cfg.pack_gap)),
+                np.full(n_arena, C.BODY_RADIUS + _PLACEMENT_MARGIN),
+                np.full(k_arena, _pack_placement_radius(cfg.pack_gap)),
             ]
         )
         pack_wall = _pack_wall_margin(cfg.pack_gap, cfg.pack_wall_clearance)
-        wall_margin = np.concatenate([np.zeros(n), np.full(k, pack_wall)])
-        centres = place_discs(radii, cfg.field_size / 2, rng, wall_margin)
+        wall_margin = np.concatenate([np.zeros(n_arena), np.full(k_arena, pack_wall)])
+        robots, packs = np.empty((n, 2)), np.empty((k, 2))
+        for a, offset in enumerate(self.arena_centres):
+            centres = place_discs(radii, cfg.field_size / 2, rng, wall_margin) + offset
+            robots[a * n_arena : (a + 1) * n_arena] = centres[:n_arena]
+            packs[a * k_arena : (a + 1) * k_arena] = centres[n_arena:]
         yaw = rng.uniform(-math.pi, math.pi, size=n)
         for i in range(n):
-            self.set_robot_pose(i, centres[i, 0], centres[i, 1], yaw[i])
+            self.set_robot_pose(i, robots[i, 0], robots[i, 1], yaw[i])
         for j in range(k):
-            self.model.body_pos[self.pack_body[j], :2] = centres[n + j]
+            self.model.body_pos[self.pack_body[j], :2] = packs[j]
         self.led_on[:] = False
         self.model.geom_rgba[self.led_geom] = LED_OFF_RGBA
         self.pack_active[:] = True

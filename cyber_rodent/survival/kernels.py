@@ -19,9 +19,9 @@ construction (``backend``) and binds it to its named buffers once:
 * :func:`count_down_packs`: the end of a step for the packs that a docking made inactive:
   their countdowns, and their colour and dockability back when a countdown runs out (run only
   while some pack is inactive);
-* :func:`mate`: IR mating: which signalling pairs hold the condition (ports facing each other
-  within the angle, within the distance), their consecutive-step streaks, and the exchanges
-  (nearest pairs first, one partner per robot per step).
+* :func:`mate`: IR mating: which signalling pairs hold the condition (robots of one arena, ports
+  facing each other within the angle, within the distance), their consecutive-step streaks,
+  and the exchanges (nearest pairs first, one partner per robot per step).
 
 ``tests/test_kernel_parity.py`` checks each kernel against its reference, and whole runs.
 """
@@ -451,6 +451,10 @@ def count_down_packs_reference(packs: PackAvailability) -> int:
 
 
 # --- IR mating ---------------------------------------------------------------------------------
+#: ``IrPorts.arena`` of a world whose robots are all in one arena (no arena test).
+ONE_ARENA = np.zeros(0, dtype=np.int64)
+
+
 class IrPorts(NamedTuple):
     """The robots' IR ports (views of MuJoCo's data) and the mating streaks."""
 
@@ -460,6 +464,9 @@ class IrPorts(NamedTuple):
     streak: Ints  #: (n, n) consecutive steps each pair has held the condition (symmetric)
     streak_active: Flags  #: (1,) some pair has a streak
     pairs: Floats  #: (n * n, 3) scratch: distance², robot a, robot b of the facing pairs
+    #: (n,) each robot's arena (``World.robot_arena``): only robots of one arena pair, as no
+    #: IR link crosses a wall; empty (:data:`ONE_ARENA`): every robot is in one arena
+    arena: Ints = ONE_ARENA
 
 
 class MatingRules(NamedTuple):
@@ -475,6 +482,10 @@ def mate(
     signal: Flags, alive: Flags, docked: Flags, ports: IrPorts, rules: MatingRules, partner: Ints
 ) -> bool:
     """Advance the streaks of the pairs that hold the mating condition; record exchanges.
+
+    A pair holds the condition when both robots signal, are alive and free, are in the same
+    arena (``ports.arena``), their ports are within ``rules.reach2`` of each other and each
+    port faces the other within the angle.
 
     Args:
         signal: (n,) the robots that signal Mate this step (free and living ones only).
@@ -496,6 +507,8 @@ def mate(
             ports.streak_active[0] = False
         return False
     pos, axes, site = ports.site_xpos, ports.site_xmat, ports.site
+    arena = ports.arena
+    split = arena.shape[0] > 0
     pairs = ports.pairs
     k = 0
     for a in range(n):
@@ -504,6 +517,8 @@ def mate(
         pa = pos[site[a]]
         for b in range(a + 1, n):
             if not (signal[b] and alive[b] and not docked[b]):
+                continue
+            if split and arena[a] != arena[b]:  # a wall between them: no IR link
                 continue
             pb = pos[site[b]]
             dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
@@ -560,10 +575,14 @@ def mate_reference(
         return False
     who = np.flatnonzero(signal & alive & ~docked).tolist()
     pos = ports.site_xpos[ports.site].tolist()
+    # Robots of one arena only (a wall between two arenas blocks the IR link).
+    arena = ports.arena.tolist() if len(ports.arena) else [0] * len(signal)
     close = []
     for a_k, a in enumerate(who):
         pa = pos[a]
         for b in who[a_k + 1 :]:
+            if arena[a] != arena[b]:
+                continue
             pb = pos[b]
             dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
             d2 = dx * dx + dy * dy + dz * dz
@@ -603,6 +622,7 @@ __all__ = [
     "RELEASE_FIRST",
     "IrPorts",
     "MatingRules",
+    "ONE_ARENA",
     "mate",
     "mate_reference",
     "Actuation",

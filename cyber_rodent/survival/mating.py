@@ -2,8 +2,9 @@
 
 An exchange succeeds when both robots signal Mate and each one's IR port faces the other's
 within ``mate_angle_deg`` (±15°) at a port-to-port distance of at most ``mate_distance``
-(0.35 m), for ``mate_consecutive_steps`` consecutive control steps (docs/design.md §5). The
-world reports the pair; what is exchanged is the caller's business.
+(0.35 m), for ``mate_consecutive_steps`` consecutive control steps (docs/design.md §5). No IR
+link crosses a wall: in a world of several arenas (``WorldConfig.arenas``) only robots of one
+arena pair. The world reports the pair; what is exchanged is the caller's business.
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ class Mating:
             streak=self.streak,
             streak_active=np.zeros(1, dtype=np.bool_),
             pairs=np.zeros((n * n, 3)),
+            arena=np.asarray(world.robot_arena, dtype=np.int64),
         )
         self.rules = MatingRules(
             reach2=float(config.mate_distance) ** 2,

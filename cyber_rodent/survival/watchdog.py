@@ -225,11 +225,7 @@ def free_spot(world: World, robot: int, step: float = 0.05, rings: int = 60) -> 
 def arena_bounds(world: World, robot: int) -> tuple[np.ndarray, float]:
     """The centre (x, y) of ``robot``'s walled field and its half side, m."""
     half = world.config.field_size / 2.0
-    centres = getattr(world, "arena_centres", None)
-    arena = getattr(world, "robot_arena", None)
-    if centres is None or arena is None:
-        return np.zeros(2), half
-    return np.asarray(centres[int(arena[robot])], dtype=float), half
+    return np.asarray(world.arena_centres[int(world.robot_arena[robot])], dtype=float), half
 
 
 __all__ = ["MOVING_COMMAND", "Trouble", "Watchdog", "WatchdogEvents", "arena_bounds", "free_spot"]

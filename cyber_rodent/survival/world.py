@@ -48,6 +48,8 @@ from cyber_rodent.survival.kernels import (
     SurvivalState,
 )
 from cyber_rodent.survival.mating import Mating
+from cyber_rodent.vision import kernels as vision_kernels
+from cyber_rodent.vision.geometric import culled_rangefinders
 from cyber_rodent.world import LED_OFF_RGBA, LED_ON_RGBA, World, WorldConfig
 
 _DSBL_SENSOR = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
@@ -183,6 +185,17 @@ class SurvivalWorld:
         #: The caller's command arrays that ``_begin`` reads directly (see :meth:`begin_step`).
         self._callers: tuple[np.ndarray, ...] = ()
         self._end = bind(end, self._state, self._rules, self._flags, self._outcome)
+        #: In a world of many arenas, the rangefinders' rays through a grid of the geoms near
+        #: them, after the physics (:meth:`advance_physics`); None: MuJoCo's sensor stage.
+        self._ranges: Callable[[], None] | None = None
+        finders = culled_rangefinders(world)
+        if finders is not None:
+            d = world.data
+            poses = vision_kernels.MujocoPoses(
+                d.site_xpos, d.site_xmat, d.geom_xpos, d.geom_xmat, m._address, d._address
+            )
+            ranges = pick(self.backend, vision_kernels.ranges, vision_kernels.ranges_reference)
+            self._ranges = bind(ranges, poses, finders, d.sensordata)
         self._wheel_shape = (n, 2)
         self._flag_shape = (n,)
         self._mid_step = False
@@ -289,8 +302,25 @@ class SurvivalWorld:
         sensor stage disabled and the last one with it enabled (as configured): the trajectory
         and ``sensordata`` are bit-identical to ``mj_step(nstep=n_substeps)``
         (``tests/test_survival_sensor_deferral.py`` checks both).
+
+        In a world of many arenas (``WorldConfig.arenas``) every substep runs without the
+        sensor stage, and the rangefinders are then read from the last substep's poses, as
+        MuJoCo's sensor stage reads them, by ``cyber_rodent.vision.kernels.ranges``, whose rays
+        test only the geoms near them: the same readings, bit for bit
+        (``tests/test_arenas.py``), while MuJoCo's scan of every geom of the colony for each
+        ray cost each robot more as the colony grew.
         """
         m, d, n_sub = self.world.model, self.world.data, self.n_substeps
+        if self._ranges is not None:
+            opt = m.opt
+            flags = opt.disableflags
+            opt.disableflags = flags | _DSBL_SENSOR
+            try:
+                mujoco.mj_step(m, d, nstep=n_sub)
+            finally:
+                opt.disableflags = flags
+            self._ranges()
+            return
         if n_sub > 1:
             opt = m.opt
             flags = opt.disableflags

@@ -88,6 +88,9 @@ RAY_CELL = 0.5
 #: m, geoms with a larger bounding radius (the walls), and planes (unbounded), are tested by
 #: every ray instead of being binned.
 _ALWAYS_RBOUND = 0.5
+#: m, how much farther than an arena's diagonal a rangefinder's ray is searched through the grid
+#: (``culled_rangefinders``): beyond it, ``mj_ray`` answers.
+RANGE_SEARCH_MARGIN = 0.5
 #: From this many geoms on, the search's rays test only the geoms near them; with fewer,
 #: ``mj_ray``'s scan of every geom costs no more (the paper's world has 67 geoms).
 CULL_FROM_GEOMS = 200
@@ -222,6 +225,10 @@ class GeometricVision:
             target_cls=self.target_cls,
             ids=np.arange(n_targets, dtype=np.int64),
             own=np.ascontiguousarray(self.target_owner[None, :] == np.arange(n)[:, None]),
+            camera_arena=np.asarray(world.robot_arena, dtype=np.int64),
+            target_arena=np.concatenate(
+                [world.robot_arena, world.robot_arena, world.pack_arena]
+            ).astype(np.int64),
             plate=plate,
             half_width=self.half_width,
             half_height=np.array([0.5 * s.height for s in shape_of], dtype=float),
@@ -522,8 +529,9 @@ def widen_ray_culling_bounds(model: mujoco.MjModel) -> None:
 
 
 def uniform_grid(field_size: float, cell: float, members: np.ndarray) -> kernels.UniformGrid:
-    """A grid of cells of side ``cell`` over a square field of side ``field_size`` (centred on
-    the origin), for binning ``members``."""
+    """A grid of cells of side ``cell`` over a square of side ``field_size`` (centred on the
+    origin: the field, or the layout of several arenas, ``WorldConfig.extent``), for binning
+    ``members``."""
     side = max(1, math.ceil(field_size / cell - 1e-9))
     members = np.ascontiguousarray(members, dtype=np.int64)
     return kernels.UniformGrid(
@@ -537,11 +545,11 @@ def uniform_grid(field_size: float, cell: float, members: np.ndarray) -> kernels
     )
 
 
-def scene_index(world: World, n_targets: int, groups: np.ndarray) -> kernels.SceneIndex:
-    """The grids of the nearest-target search (``kernels.nearest``) for ``world``: its targets
-    in cells of :data:`SEARCH_CELL`, and the geoms its rays may hit (those in a group of
-    ``groups``) in cells of :data:`RAY_CELL`, except planes and large geoms (the walls), which
-    every ray tests."""
+def ray_culling(world: World, groups: np.ndarray) -> tuple[kernels.RayCulling, np.ndarray]:
+    """What culled rays need of ``world`` (:class:`kernels.RayCulling`) for geoms of a group in
+    ``groups``, and the geoms to bin in a grid: all of those but planes and large geoms (the
+    walls of every arena), which the rays test without the grid (planes always, the others
+    where their bounding sphere meets the ray: ``kernels.first_hit``)."""
     m = world.model
     group = np.clip(m.geom_group, 0, len(groups) - 1)
     in_group = groups[group] != 0
@@ -563,7 +571,16 @@ def scene_index(world: World, n_targets: int, groups: np.ndarray) -> kernels.Sce
         reach=reach,
         cull=bool(m.ngeom >= CULL_FROM_GEOMS),
     )
-    size = world.config.field_size
+    return rays, binned
+
+
+def scene_index(world: World, n_targets: int, groups: np.ndarray) -> kernels.SceneIndex:
+    """The grids of the nearest-target search (``kernels.nearest``) for ``world``: its targets
+    in cells of :data:`SEARCH_CELL`, and the geoms its rays may hit (those in a group of
+    ``groups``) in cells of :data:`RAY_CELL` (:func:`ray_culling`). The grids cover every
+    arena (``WorldConfig.extent``)."""
+    rays, binned = ray_culling(world, groups)
+    size = world.config.extent  # the field, or every arena's (WorldConfig.arenas)
     return kernels.SceneIndex(
         targets=uniform_grid(size, SEARCH_CELL, np.arange(n_targets)),
         geoms=uniform_grid(size, RAY_CELL, binned),
@@ -572,7 +589,42 @@ def scene_index(world: World, n_targets: int, groups: np.ndarray) -> kernels.Sce
         tried=np.zeros(3, dtype=np.int64),
         done=np.zeros(3, dtype=np.bool_),
         ring=np.zeros(n_targets, dtype=np.int64),
+        near=np.zeros(world.model.ngeom, dtype=np.int64),
+    )
+
+
+def culled_rangefinders(world: World) -> kernels.RangeFinders | None:
+    """The buffers of ``kernels.ranges``, which computes the world's rangefinder readings as
+    MuJoCo's sensor stage does, testing only the geoms near each ray; None where MuJoCo's own
+    scan is as good or the world has other sensors: one arena (the paper's world keeps
+    MuJoCo's sensor stage), fewer than :data:`CULL_FROM_GEOMS` geoms, a sensor that is no
+    site's rangefinder, or no usable ``mj_ray`` (``kernels.UNAVAILABLE_REASON``).
+
+    Each ray is searched through the grid over one arena's diagonal plus a margin
+    (``RangeFinders.length``): from inside an arena a level ray meets a wall within it."""
+    m = world.model
+    if world.config.arenas == 1 or m.ngeom < CULL_FROM_GEOMS or kernels.UNAVAILABLE_REASON:
+        return None
+    site_sensor = (m.sensor_type == mujoco.mjtSensor.mjSENS_RANGEFINDER) & (
+        m.sensor_objtype == mujoco.mjtObj.mjOBJ_SITE
+    )
+    if not site_sensor.all():
+        return None
+    site = m.sensor_objid.astype(np.int64)
+    every_group = np.ones(len(VISIBLE_GROUPS), dtype=np.uint8)
+    rays, binned = ray_culling(world, every_group)
+    return kernels.RangeFinders(
+        site=site,
+        exclude=m.site_bodyid[site].astype(np.int64),
+        address=m.sensor_adr.astype(np.int64),
+        length=float(world.config.diagonal + RANGE_SEARCH_MARGIN),
+        geoms=uniform_grid(world.config.extent, RAY_CELL, binned),
+        rays=rays,
         near=np.zeros(m.ngeom, dtype=np.int64),
+        groups=every_group,
+        unit=np.zeros((len(site), 3)),
+        segment=np.zeros(3),
+        hit=np.zeros(1, dtype=np.int32),
     )
 
 

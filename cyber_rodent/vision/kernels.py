@@ -96,6 +96,10 @@ class TargetTable(NamedTuple):
     target_cls: Ints  #: (T,) colour class of each target (LED, FACE, BATTERY)
     ids: Ints  #: (T,) 0 .. T - 1: every target, as a list
     own: Bools  #: (n, T) the target belongs to the robot
+    #: (n,) each camera's arena (``World.robot_arena``): a robot sees only the targets of its
+    #: own arena, as the walls between arenas hide every other (docs/design.md §9.33)
+    camera_arena: Ints
+    target_arena: Ints  #: (T,) each target's arena (its robot's, or ``World.pack_arena``)
     plate: Bools  #: (T,) a face plate (seen only from the front)
     half_width: Floats  #: (T,) m
     half_height: Floats  #: (T,) m
@@ -200,7 +204,9 @@ class RayCulling(NamedTuple):
     mat_rgba: npt.NDArray[np.float32]  #: (nmat, 4) view of ``MjModel.mat_rgba``
     in_group: Bools  #: (G,) the geom's group is one the rays see (``TargetTable.geom_groups``)
     primitive: Bools  #: (G,) a type ``mju_rayGeom`` intersects (:data:`PRIMITIVE_GEOMS`)
-    always: Ints  #: geoms every ray tests (planes, which are unbounded, and very large geoms)
+    #: geoms not binned (planes, which are unbounded, and very large geoms: the walls); every
+    #: ray tests the planes, and the others whose bounding sphere meets it
+    always: Ints
     reach: float  #: m, the largest bounding radius of the binned geoms, plus a margin
     cull: bool  #: use :func:`first_hit`; False: ``mj_ray`` (as fast where geoms are few)
 
@@ -543,8 +549,8 @@ def _place(
 ) -> None:  # fmt: skip
     """Targets ``listed[:count]`` in robot ``i``'s camera frame (``diff``, ``local``,
     ``bearing``, ``distance``), and in ``candidate`` whether each could be seen if it were
-    large enough: in range, not the robot's own, a lit LED, an active pack, a plate whose
-    front or side the camera faces.
+    large enough: in range, in the robot's arena, not the robot's own, a lit LED, an active
+    pack, a plate whose front or side the camera faces.
 
     A list, not one target per call: a compiled helper's named buffers are counted as
     references at every call, which costs more than placing one target.
@@ -570,6 +576,8 @@ def _place(
         f.bearing[i, t] = math.atan2(l1, l0)
         f.distance[i, t] = dist
         ok = dist <= camera.max_range and not targets.own[i, t]
+        if targets.target_arena[t] != targets.camera_arena[i]:
+            ok = False  # behind the walls of another arena
         if t < n and not led_on[t]:
             ok = False  # a dark LED is not a green target
         if t >= first_pack and not pack_active[t - first_pack]:
@@ -592,10 +600,11 @@ def front(
 
     With ``every_target`` False, only what costs nothing is filled: each target's position
     (``diff``, ``local``, ``bearing``, ``distance``) and in ``candidate`` whether it could be
-    seen *if it were large enough* (in range, not the robot's own, a lit LED, a plate whose
-    front or side the camera faces). With it True, also each target's projected size (a
-    candidate must also be large enough), and the occlusion samples of the candidates (a
-    target that cannot be seen gets no rays: its ``rays`` are zero, its ``sample_ok`` False).
+    seen *if it were large enough* (in range, in the robot's arena, not the robot's own, a lit
+    LED, a plate whose front or side the camera faces). With it True, also each target's
+    projected size (a candidate must also be large enough), and the occlusion samples of the
+    candidates (a target that cannot be seen gets no rays: its ``rays`` are zero, its
+    ``sample_ok`` False).
 
     A dark LED (``led_on``) and an inactive pack (``pack_active``, the last targets) are no
     target of their colour; they still hide what is behind them (the rays hit their geoms).
@@ -709,6 +718,7 @@ def front_reference(
     np.greater_equal(f.full_area, targets.min_area, out=candidate)
     candidate &= distance <= camera.max_range
     candidate &= ~targets.own
+    candidate &= targets.camera_arena[:, None] == targets.target_arena[None, :]  # one arena
     candidate[:, :n] &= led_on[None, :]  # a dark LED is not a green target
     candidate[:, candidate.shape[1] - len(pack_active) :] &= pack_active[None, :]  # dark packs
     # Plates (faces) show their front to a camera ahead of them, their side edge-on to one
@@ -780,34 +790,32 @@ def _bin(grid: UniformGrid, positions: Floats) -> None:
 
 
 @jit_inline
-def first_hit(
-    poses: MujocoPoses, grids: SceneIndex, groups: npt.NDArray[np.uint8], exclude: int,
-    p: Floats, v: Floats, pnt: np.int64, vec: np.int64, hit: npt.NDArray[np.int32],
-) -> int:  # fmt: skip
-    """The geom that ``mj_ray`` hits first on the ray p + x v (``pnt``, ``vec``: the
-    addresses of ``p`` and ``v``), ignoring body ``exclude``: the same geom, found by testing
-    only the geoms near the segment x in [0, 1]. Also written to ``hit[0]``.
-
-    ``mj_ray`` returns the nearest hit of every geom it does not eliminate (the excluded body,
-    transparent geoms or materials, groups not in ``groups``), each intersected by
-    ``mju_rayGeom``, ties to the lowest geom id. Here the geoms tested are those every ray
-    tests (``rays.always``) and the binned geoms whose bounding sphere (plus
-    :data:`CULL_MARGIN`) meets the segment, found in the grid cells the segment passes within
-    ``rays.reach`` of. A geom whose bounding sphere misses the segment has no surface point on
-    it, so if the nearest hit found lies on the segment (x <= 1) no other geom can be hit
-    before it, and it is ``mj_ray``'s answer. The rays of the geometric vision aim at a point
-    inside their target, so they hit something on the segment; if not (or a geom found is no
-    primitive), ``mj_ray`` itself answers.
-    """
-    rays, grid = grids.rays, grids.geoms
-    near = grids.near
+def _near_geoms(
+    poses: MujocoPoses, rays: RayCulling, grid: UniformGrid, near: Ints, p: Floats, v: Floats
+) -> int:
+    """Into ``near``, the geoms a ray along the segment p + x v, x in [0, 1], may hit first:
+    the unbounded ones of ``rays.always`` (planes), and the bounded ones of ``rays.always``
+    (walls, one arena's or many arenas') and the binned geoms found in the cells of ``grid``
+    the segment passes within ``rays.reach`` of, each only if its bounding sphere (plus
+    :data:`CULL_MARGIN`) meets the segment. Returns how many."""
     origin, cell, side = grid.origin, grid.cell, grid.side
+    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
     count = 0
     for k in range(rays.always.shape[0]):
-        near[count] = rays.always[k]
+        g = rays.always[k]
+        radius = rays.geom_rbound[g]
+        if radius > 0.0:  # a bounded geom (a wall): only if its bounding sphere meets the segment
+            c0 = poses.geom_xpos[g, 0] - p[0]
+            c1 = poses.geom_xpos[g, 1] - p[1]
+            c2 = poses.geom_xpos[g, 2] - p[2]
+            x = min(max((c0 * v[0] + c1 * v[1] + c2 * v[2]) / vv, 0.0), 1.0)
+            q0, q1, q2 = x * v[0] - c0, x * v[1] - c1, x * v[2] - c2
+            radius += CULL_MARGIN
+            if q0 * q0 + q1 * q1 + q2 * q2 > radius * radius:
+                continue
+        near[count] = g
         count += 1
     reach = rays.reach
-    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
     x0, x1 = p[0], p[0] + v[0]
     first = _grid_cell(origin, cell, side, min(x0, x1) - reach)
     last = _grid_cell(origin, cell, side, max(x0, x1) + reach)
@@ -844,7 +852,19 @@ def first_hit(
                 if q0 * q0 + q1 * q1 + q2 * q2 <= radius * radius:
                     near[count] = g
                     count += 1
-    # mj_ray's own test of each geom found, nearest hit first, ties to the lower geom id.
+    return count
+
+
+@jit_inline
+def _nearest_of(
+    poses: MujocoPoses, rays: RayCulling, near: Ints, count: int, exclude: int, pnt: np.int64,
+    vec: np.int64,
+) -> tuple[float, int, bool]:  # fmt: skip
+    """``mj_ray``'s own test (``mju_rayGeom``) of the geoms ``near[:count]`` on the ray from
+    ``pnt`` along ``vec`` (addresses), eliminating those ``mj_ray`` eliminates (body
+    ``exclude``, transparent geoms or materials, groups the rays do not see): the nearest hit
+    (x in units of ``vec``, -1 if none) and its geom, ties to the lower geom id, and whether a
+    geom found is no primitive (then only ``mj_ray`` can answer)."""
     base_pos = np.int64(poses.geom_xpos.ctypes.data)
     base_mat = np.int64(poses.geom_xmat.ctypes.data)
     base_size = np.int64(rays.geom_size.ctypes.data)
@@ -867,6 +887,31 @@ def first_hit(
         )  # fmt: skip
         if x >= 0.0 and (best < 0.0 or x < best or (x == best and g < best_geom)):
             best, best_geom = x, g
+    return best, best_geom, fallback
+
+
+@jit_inline
+def first_hit(
+    poses: MujocoPoses, grids: SceneIndex, groups: npt.NDArray[np.uint8], exclude: int,
+    p: Floats, v: Floats, pnt: np.int64, vec: np.int64, hit: npt.NDArray[np.int32],
+) -> int:  # fmt: skip
+    """The geom that ``mj_ray`` hits first on the ray p + x v (``pnt``, ``vec``: the
+    addresses of ``p`` and ``v``), ignoring body ``exclude``: the same geom, found by testing
+    only the geoms near the segment x in [0, 1]. Also written to ``hit[0]``.
+
+    ``mj_ray`` returns the nearest hit of every geom it does not eliminate (the excluded body,
+    transparent geoms or materials, groups not in ``groups``), each intersected by
+    ``mju_rayGeom``, ties to the lowest geom id. Here the geoms tested are those of
+    :func:`_near_geoms`: every geom whose bounding sphere meets the segment, and the planes. A
+    geom whose bounding sphere misses the segment has no surface point on it, so if the
+    nearest hit found lies on the segment (x <= 1) no other geom can be hit before it, and it
+    is ``mj_ray``'s answer. The rays of the geometric vision aim at a point inside their
+    target, so they hit something on the segment; if not (or a geom found is no primitive),
+    ``mj_ray`` itself answers.
+    """
+    rays = grids.rays
+    count = _near_geoms(poses, rays, grids.geoms, grids.near, p, v)
+    best, best_geom, fallback = _nearest_of(poses, rays, grids.near, count, exclude, pnt, vec)
     if fallback or best < 0.0 or best > 1.0:
         _MJ_RAY(
             poses.model_address, poses.data_address, pnt, vec, np.int64(groups.ctypes.data),
@@ -892,6 +937,77 @@ def _cast(
         np.uint8(1), np.int32(exclude), np.int64(hit.ctypes.data), np.int64(0),
     )  # fmt: skip
     return int(hit[0])
+
+
+# --- rangefinders in a world of many arenas ---------------------------------------------------
+class RangeFinders(NamedTuple):
+    """The rangefinders :func:`ranges` reads (R of them, each a site's ``rangefinder`` sensor)
+    and the grid of the geoms their rays may hit (every group: the sensor sees them all)."""
+
+    site: Ints  #: (R,) the sensor's site
+    exclude: Ints  #: (R,) the body its ray ignores (its site's body, as MuJoCo's sensor does)
+    address: Ints  #: (R,) where its reading goes in ``sensordata``
+    length: float  #: m, the part of every ray searched through the grid (an arena's diagonal)
+    geoms: UniformGrid  #: every geom except ``rays.always``, binned at each call
+    rays: RayCulling
+    near: Ints  #: (G,) scratch: the geoms one ray tests
+    groups: npt.NDArray[np.uint8]  #: (6,) every geom group (``mj_ray``'s fallback sees all)
+    unit: Floats  #: (R, 3) scratch: each ray's direction, its site's z axis
+    segment: Floats  #: (3,) scratch: the searched part of one ray
+    hit: npt.NDArray[np.int32]  #: (1,) scratch: the geom ``mj_ray`` hit
+
+
+@jit
+def ranges(poses: MujocoPoses, finders: RangeFinders, sensordata: Floats) -> None:
+    """Every rangefinder's reading into ``sensordata``, as MuJoCo's sensor stage computes it:
+    ``mj_ray`` from the site along its z axis, every geom group, static geoms included, the
+    site's body excluded; the distance to the nearest surface, -1 if none.
+
+    The geoms tested are those near the ray's first ``finders.length`` metres
+    (:func:`_near_geoms`), each with ``mj_ray``'s own test on the unit direction (so the
+    distance is ``mj_ray``'s, bit for bit); a geom not tested has no surface point on that
+    part of the ray, so a hit found there is the nearest. A ray with no hit there (it leaves
+    its arena over a wall) or near a geom that is no primitive is ``mj_ray``'s. MuJoCo's scan
+    tests every geom of the world for each of the 8 rays of each robot, a cost per robot that
+    grows with the colony; this one grows with the geoms near each ray.
+    """
+    _bin(finders.geoms, poses.geom_xpos)
+    length = finders.length
+    unit, segment = finders.unit, finders.segment
+    row_size = np.int64(_ROW)
+    sites_ptr, unit_ptr = np.int64(poses.site_xpos.ctypes.data), np.int64(unit.ctypes.data)
+    groups_ptr, hit_ptr = np.int64(finders.groups.ctypes.data), np.int64(finders.hit.ctypes.data)
+    for r in range(finders.site.shape[0]):
+        s = finders.site[r]
+        for k in range(3):
+            unit[r, k] = poses.site_xmat[s, 3 * k + 2]
+            segment[k] = length * unit[r, k]
+        pnt, vec = sites_ptr + s * row_size, unit_ptr + r * row_size
+        exclude = finders.exclude[r]
+        count = _near_geoms(
+            poses, finders.rays, finders.geoms, finders.near, poses.site_xpos[s], segment
+        )
+        best, _, fallback = _nearest_of(poses, finders.rays, finders.near, count, exclude, pnt, vec)
+        if fallback or best < 0.0 or best > length:
+            best = _MJ_RAY(
+                poses.model_address, poses.data_address, pnt, vec, groups_ptr, np.uint8(1),
+                np.int32(exclude), hit_ptr, np.int64(0),
+            )  # fmt: skip
+        sensordata[finders.address[r]] = best
+
+
+def ranges_reference(poses: MujocoPoses, finders: RangeFinders, sensordata: Floats) -> None:
+    """:func:`ranges` as MuJoCo's sensor stage does it: ``mj_ray`` (through ``ctypes``) over
+    every geom, for each rangefinder."""
+    unit = finders.unit
+    np.copyto(unit, poses.site_xmat[finders.site][:, 2::3])
+    sites_ptr, unit_ptr = poses.site_xpos.ctypes.data, unit.ctypes.data
+    groups_ptr, hit_ptr = finders.groups.ctypes.data, finders.hit.ctypes.data
+    for r, s in enumerate(finders.site.tolist()):
+        sensordata[finders.address[r]] = _MJ_RAY_REFERENCE(
+            poses.model_address, poses.data_address, sites_ptr + s * _ROW, unit_ptr + r * _ROW,
+            groups_ptr, 1, int(finders.exclude[r]), hit_ptr, 0,
+        )  # fmt: skip
 
 
 # --- the pixels of a small target ----------------------------------------------------------------
@@ -1559,6 +1675,7 @@ __all__ = [
     "MergeRules",
     "MujocoPoses",
     "NearestTargets",
+    "RangeFinders",
     "RayCulling",
     "SceneIndex",
     "TargetTable",
@@ -1572,4 +1689,6 @@ __all__ = [
     "merge_reference",
     "nearest",
     "nearest_reference",
+    "ranges",
+    "ranges_reference",
 ]

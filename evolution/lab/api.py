@@ -13,7 +13,12 @@ statistics. With ``out_dir`` it also writes, atomically:
 - ``statistics.csv``: the table (after every checkpoint and at the end);
 - ``statistics_per_robot.csv``: per generation and robot, mean batteries over the robot's full
   lifetimes with unmated agents scored 0 (the paper's Fig. 7 measure);
-- ``events.csv``: the event log (dockings, recharge ends, matings, deaths, births);
+- ``events.csv``: the event log (dockings, recharge ends, matings, deaths, births, and what
+  the watchdog saw: robots tipped over or stuck, rescues);
+- ``watchdog.csv``: per generation, the tips and jams that began, the robot-steps spent
+  tipped and stuck, rescues and the robots concerned;
+- ``statistics_per_arena.csv``: with several arenas (``world.arenas``), per generation and
+  arena, the full lifetimes, completed agents and mean batteries of its robots;
 - ``run.json``: config, seed, behaviour policies, versions and headline numbers;
 - ``checkpoints/gen_NNNNN.ckpt``: the complete state every ``checkpoint_every`` generations.
 
@@ -248,7 +253,8 @@ def run(
         with monitoring(board, runner) as monitor:
 
             def write_results(r: EvolutionRunner) -> None:
-                write_tables(out, r.statistics(), robot_table(r), learning_table(r))
+                write_tables(out, r.statistics(), robot_table(r), learning_table(r),
+                             extra_tables(r))  # fmt: skip
                 if monitor is not None:
                     monitor(r)
 
@@ -261,7 +267,9 @@ def run(
                 progress=progress,
                 on_generation=write_results,
             )
-        write_tables(out, table, robot_table(runner), learning_table(runner))
+        write_tables(
+            out, table, robot_table(runner), learning_table(runner), extra_tables(runner)
+        )
         with atomic_output(out / EVENTS_FILE) as temp:
             runner.events.write_csv(temp)
         _write_json(out / RUN_FILE, run_record(runner, generations, max_steps, earlier, plugins))
@@ -287,6 +295,37 @@ def robot_table(runner: EvolutionRunner) -> pd.DataFrame:
     import pandas as pd
 
     return pd.DataFrame(runner.scheduler.stats.robot_records(), columns=list(ROBOT_COLUMNS))
+
+
+#: Per generation, what the watchdog saw (:meth:`evolution.runner.events.EventLog.watchdog`).
+WATCHDOG_FILE = "watchdog.csv"
+#: Per generation and arena, in a world of several arenas (``world.arenas``).
+ARENA_STATISTICS_FILE = "statistics_per_arena.csv"
+
+
+def extra_tables(runner: EvolutionRunner) -> list[tuple[str, pd.DataFrame]]:
+    """The run's tables beside ``statistics.csv``: the watchdog's per generation (tips and
+    jams that began, robot-steps tipped and stuck, rescues, robots concerned) and, with
+    several arenas, the statistics per arena (full lifetimes, completed agents and mean
+    batteries of the arena's robots, from ``statistics_per_robot.csv``)."""
+    import pandas as pd
+
+    tables = [(WATCHDOG_FILE, pd.DataFrame(
+        runner.events.watchdog(runner.generation_steps),
+        columns=["generation", "tips", "jams", "rescues", "tipped_steps", "stuck_steps", "robots"],
+    ))]  # fmt: skip
+    world = runner.config.world
+    if world.arenas > 1:
+        robots = robot_table(runner)
+        robots["arena"] = robots["robot"] // world.robots_per_arena
+        robots["battery_sum"] = robots["batteries_mean"] * robots["full_lifetimes"]
+        per_arena = robots.groupby(["generation", "arena"], as_index=False)[
+            ["full_lifetimes", "completed", "battery_sum"]
+        ].sum()
+        lives = per_arena["full_lifetimes"].where(per_arena["full_lifetimes"] > 0)
+        per_arena["batteries_mean"] = per_arena.pop("battery_sum") / lives
+        tables.append((ARENA_STATISTICS_FILE, per_arena))
+    return tables
 
 
 def learning_table(runner: EvolutionRunner) -> pd.DataFrame | None:
@@ -456,12 +495,15 @@ def write_tables(
     statistics: pd.DataFrame,
     per_robot: pd.DataFrame,
     learning: pd.DataFrame | None = None,
+    extra: Sequence[tuple[str, pd.DataFrame]] = (),
 ) -> None:
-    """Write ``statistics.csv``, ``statistics_per_robot.csv`` and, in learning mode,
-    ``learning.csv`` into ``out``, atomically."""
+    """Write ``statistics.csv``, ``statistics_per_robot.csv``, in learning mode
+    ``learning.csv``, and the ``extra`` tables (:func:`extra_tables`) into ``out``,
+    atomically."""
     tables = [(STATISTICS_FILE, statistics), (ROBOT_STATISTICS_FILE, per_robot)]
     if learning is not None:
         tables.append((LEARNING_FILE, learning))
+    tables += list(extra)
     for name, table in tables:
         with atomic_output(out / name) as temp:
             table.to_csv(temp, index=False)

@@ -90,6 +90,7 @@ from evolution.lab.api import (
     RUN_FILE,
     check_plugins,
     check_run_config,
+    extra_tables,
     learning_table,
     make_config,
     read_record,
@@ -481,7 +482,9 @@ def advance_run(task: RunChunk) -> ChunkResult:
                 max_steps=task.max_steps,
                 on_generation=monitor,
             )
-            write_tables(out, table, robot_table(runner), learning_table(runner))
+            write_tables(
+                out, table, robot_table(runner), learning_table(runner), extra_tables(runner)
+            )
             completed = runner.completed_generations
             spent = task.max_steps is not None and runner.steps >= task.max_steps
             finished = completed >= task.generations or spent

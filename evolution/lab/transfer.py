@@ -49,6 +49,7 @@ from evolution.lab.api import (
     EVENTS_FILE,
     ROBOT_STATISTICS_FILE,
     RUN_FILE,
+    extra_tables,
     robot_table,
     run_record,
     write_tables,
@@ -314,7 +315,7 @@ def transfer(
         _write_json(dst / TRANSFER_FILE, meta)
 
         def write_results(r: EvolutionRunner) -> None:
-            write_tables(dst, r.statistics(), robot_table(r))
+            write_tables(dst, r.statistics(), robot_table(r), extra=extra_tables(r))
 
         _write_json(dst / RUN_FILE, _run_record(runner, generations))
         table = runner.run(

@@ -60,6 +60,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import numpy as np
 
+from cyber_rodent.constants import FIELD_SIZE
 from evolution.checkpoint import CheckpointError, read_header
 from evolution.lab.api import CHECKPOINT_DIR, RUN_FILE
 from evolution.lab.experiment import policies_by_name, policies_for_identity, read_run_record
@@ -139,6 +140,14 @@ class CameraView(NamedTuple):
 
 #: The opening view: the whole field from the south, 60 degrees down.
 OVERVIEW = CameraView(lookat=(0.0, 0.0, 0.0), distance=3.6, azimuth=90.0, elevation=-60.0)
+
+
+def overview(world: World) -> CameraView:
+    """The opening view of ``world``: :data:`OVERVIEW` for the paper's 2.3 m field, farther back
+    in proportion for a larger field or several arenas (``WorldConfig.extent``), so that all of
+    it is in view."""
+    scale = max(1.0, world.config.extent / FIELD_SIZE)
+    return OVERVIEW._replace(distance=OVERVIEW.distance * scale)
 
 
 # --- what each robot shows ------------------------------------------------------------------------
@@ -773,10 +782,11 @@ def open_window(mirror: Mirror, controls: Controls) -> tuple[Any, list[threading
     with handle.lock():
         cam = handle.cam
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        cam.lookat[:] = OVERVIEW.lookat
-        cam.distance = OVERVIEW.distance
-        cam.azimuth = OVERVIEW.azimuth
-        cam.elevation = OVERVIEW.elevation
+        view = overview(mirror.live)
+        cam.lookat[:] = view.lookat
+        cam.distance = view.distance
+        cam.azimuth = view.azimuth
+        cam.elevation = view.elevation
         handle.opt.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = 0  # 'Y' shows the IR rays
     return handle, threads
 

@@ -163,7 +163,7 @@ class EvolutionRunner:
         evo = config.evolution
         #: the evolution scheme (``method``: :mod:`evolution.schemes`)
         self.scheme = scheme(config.method)
-        robot_arena = getattr(self.world, "robot_arena", None)
+        robot_arena = self.world.robot_arena
         self.scheduler: TimeSharingScheduler = self.scheme.build(
             evo, np.random.default_rng(scheduler_ss), initial_genomes, backend, robot_arena
         )
