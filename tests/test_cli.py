@@ -82,7 +82,8 @@ def test_help_shows_every_default() -> None:
 
     parser = build_parser()
     expected = {
-        "evolve": ["--method {ee,ce}", "(default: ee)", "(default: 0)", "(default: 1)"],
+        # the schemes are a registry plugins add to: named in the help, checked after loading
+        "evolve": ["--method METHOD", "medea", "(default: ee)", "(default: 0)", "(default: 1)"],
         "sweep": ["(default: ee,ce)", "(default: 0-19)", "(default: 120)", "(default: CPU"],
         "transfer": ["(default: 40)", "(default: 5)", "(default: 3)", "(default: hardware)"],
         "resume": ["(default: the run's own)"],
