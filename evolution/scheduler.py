@@ -493,6 +493,20 @@ class TimeSharingScheduler:
         self._slice[robot] = 0
         self.switched[robot] = True
 
+    def _park(self, robot: int) -> None:
+        """Leave ``robot`` without an agent (CE: all its agents finished; mEDEA: silent): the
+        runner parks it (energy 0: it stands still, LED dark, no docking, no mating)."""
+        self.active[robot] = False
+        self.switched[robot] = True
+        self._state[robot] = 0.0
+        self._since_recharge[robot] = 0
+        self._since_mating[robot] = 0
+        self.active_energy[robot] = 0.0
+        self._age[robot] = 0
+        self._slice[robot] = 0
+        self._batteries[robot] = 0
+        self._matings[robot] = 0
+
     def _new_agent(self, robot: int, slot: int, genome: Genome, origin: Origin) -> None:
         generation = int(self.slot_generation[robot, slot])
         self.slots[robot][slot] = VirtualAgent(
@@ -801,16 +815,7 @@ class CentralisedEvolution(TimeSharingScheduler):
                 self.active_slot[robot] = slot
                 self._load(robot)
                 return
-        self.active[robot] = False
-        self.switched[robot] = True
-        self._state[robot] = 0.0
-        self._since_recharge[robot] = 0
-        self._since_mating[robot] = 0
-        self.active_energy[robot] = 0.0
-        self._age[robot] = 0
-        self._slice[robot] = 0
-        self._batteries[robot] = 0
-        self._matings[robot] = 0
+        self._park(robot)
 
     def _after_step(self) -> None:
         if self.active.any():

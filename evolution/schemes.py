@@ -189,16 +189,7 @@ class MedeaEvolution(EmbodiedEvolution):
             self.silent_lifetimes[robot] = 0
             self._load(robot)
             return
-        self.active[robot] = False  # parked: stands still, LED dark, no Mate, no docking
-        self.switched[robot] = True
-        self._state[robot] = 0.0
-        self._since_recharge[robot] = 0
-        self._since_mating[robot] = 0
-        self.active_energy[robot] = 0.0
-        self._age[robot] = 0
-        self._slice[robot] = 0
-        self._batteries[robot] = 0
-        self._matings[robot] = 0
+        self._park(robot)
 
     def _record_matings(self, mated: np.ndarray) -> None:
         """A mating counts, but carries no genome (mEDEA's genomes travel by broadcast)."""
