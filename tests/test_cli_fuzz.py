@@ -30,7 +30,7 @@ MANY_VALUES = ",".join(str(v) for v in range(1, 201))
 #: Bad inputs, per command: (argv, a fragment the error line must contain).
 CASES: dict[str, list[tuple[list[str], str]]] = {
     "evolve": [
-        (["evolve", "--method", "xyz"], "invalid choice"),
+        (["evolve", "--method", "xyz"], "method must be one of ee, ce"),
         (["evolve", "--seed", "abc"], "--seed must be an integer"),
         (["evolve", "--seed", "-1", "--out", "{new}"], "--seed must be an integer in [0"),
         (["evolve", "--generations", "0", "--out", "{new}"], "--generations"),

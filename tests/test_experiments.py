@@ -197,7 +197,7 @@ def test_parse_seeds() -> None:
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["evolve", "--method", "xx"], "invalid choice"),
+        (["evolve", "--method", "xx"], "method must be one of ee, ce"),
         (["evolve", "--set", "no_such_key=1"], "unknown config key 'no_such_key'"),
         (
             ["evolve", "--set", "population_size=many"],
