@@ -270,6 +270,7 @@ def test_the_paper_schemes_are_untouched_by_the_new_settings() -> None:
 
 
 # --- from the command line ------------------------------------------------------------------------
+@pytest.mark.slow  # four sweeps (about a minute); test_plugins covers two workers in the fast suite
 def test_a_sweep_of_the_new_schemes_is_the_same_on_one_and_two_workers(tmp_path: Path) -> None:
     """mEDEA and EE with one colony-wide spare list, 8 robots, one generation each: the same
     files from one worker and from two, and a bad scheme is refused in one line."""
