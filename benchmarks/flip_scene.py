@@ -1,4 +1,4 @@
-"""Robot-robot collisions that tip a Cyber Rodent over (issue 44): scenes and model variants.
+"""Robot-robot collisions that tip a Cyber Rodent over: scenes and model variants.
 
 **Two-robot scene** (default). Two robots drive at each other with both wheels at the same
 constant rim speed (``--speeds``, default 0.2-1.3 m/s), held through the impact and for
@@ -20,8 +20,8 @@ robot on another: :class:`LiftTally`).
 
 **Other scenes.** ``--sweep N``: N random head-on encounters (offset 0-14 cm, +-10 deg,
 0.8-1.3 m/s each, random impact phase within a step). ``--pile``: ``--pile-robots`` robots
-in a ring all driving at its centre (the issue's centre phase in miniature), ``--pile-trials``
-seeded draws. ``--stress``: the issue's scene, 100 robots and 125 packs in an 11.5 m field,
+in a ring all driving at its centre (the stress scene's centre phase, small), ``--pile-trials``
+seeded draws. ``--stress``: the reported scene, 100 robots and 125 packs in an 11.5 m field,
 random driving and every other 5 s (5-10 s, ...; ``--centre-first``: 0-5 s, ...) steering to
 the centre at 1.2 m/s, for ``--stress-seconds``: tips per robot-hour. ``--trace N`` (pile,
 stress) replays the last 1.2 s before each of the first N tips substep by substep and prints
@@ -655,7 +655,7 @@ def stress(
     trace: int = 0,
     centre_first: bool = False,
 ) -> dict[str, Any]:
-    """The issue's scene: 100 robots, 125 packs, 11.5 m field; random driving, and every other
+    """The reported scene: 100 robots, 125 packs, 11.5 m field; random driving, and every other
     5 s (5-10 s, 15-20 s, ...) all robots steer to the field's centre at 1.2 m/s. Counts the
     robots' tips past 60 deg (each crossing from above 0.5 uprightness to below it) and the
     robots that are upside down at the end (``centre_first``: the centre phases are 0-5 s,
@@ -807,7 +807,7 @@ def pile(
     """``n`` robots in a ring (inner radius about n x 5 cm, at least 0.6 m; 0.6 m wide; no two
     closer than their discs, 2 x BODY_RADIUS + 2 cm), each
     headed at the centre (+-20 deg) at 80-100 % of ``v``, driving straight for ``seconds``
-    with the command held: the issue's centre phase in miniature. Counts tips past 60 deg
+    with the command held: the stress scene's centre phase in miniature. Counts tips past 60 deg
     (each robot's crossings of 0.5 uprightness) over ``trials`` seeded draws."""
     world = make_world(variant, WorldConfig(field_size=FIELD, n_robots=n, n_packs=0))
     names = _names(world)

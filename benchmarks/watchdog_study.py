@@ -1,4 +1,4 @@
-"""How often robots tip over or jam, from the watchdog's events in finished runs (issue 44).
+"""How often robots tip over or jam, from the watchdog's events in finished runs.
 
 For every run directory under the given roots (a run's ``events.csv`` and ``run.json``), this
 counts the watchdog's events (``tipped``, ``stuck``, their ends and ``rescue``;
