@@ -211,7 +211,8 @@ class MedeaEvolution(EmbodiedEvolution):
             return switched
         self.listen_steps[silent] += 1
         lifetime = self.config.lifetime_steps
-        for robot in np.flatnonzero(silent & (self.listen_steps >= lifetime)).tolist():
+        ended = np.flatnonzero(silent & (self.listen_steps >= lifetime)).tolist()
+        for robot in ended:
             self.silent_lifetimes[robot] += 1
             self.slot_generation[robot, 0] += 1
             taken = self._take_received(robot)
@@ -226,7 +227,8 @@ class MedeaEvolution(EmbodiedEvolution):
             self._new_agent(robot, 0, *taken)
             self.active[robot] = True
             self._advance(robot)
-        self._close_rows()
+        if ended:  # a silent lifetime passed: a slot's generation rose
+            self._close_rows()
         return switched
 
     # --- checkpoint state -------------------------------------------------------------------
