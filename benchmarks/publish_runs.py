@@ -9,8 +9,9 @@ machine changes, and ``cyber-rodent plot <to>`` draws the figures from the publi
     .venv/bin/python -m benchmarks.publish_runs --from runs/fig6 --to results/fig6
 
 A run counts as finished when its statistics cover generations 0 to its target - 1, or when it
-spent its step budget (``--max-steps``). A learning-mode run's ``learning.csv`` is published
-with it. Runs already published with identical files are left alone; the names of newly
+spent its step budget (``--max-steps``). Where a run has them, its watchdog table
+(``watchdog.csv``), its per-arena statistics and a learning-mode run's ``learning.csv`` are
+published with it. Runs already published with identical files are left alone; the names of newly
 published runs are printed.
 """
 
@@ -26,8 +27,8 @@ import pandas as pd
 
 #: What a published run holds: its per-generation tables and its record.
 PUBLISHED_FILES = ("statistics.csv", "statistics_per_robot.csv", "run.json")
-#: Published too where a run has it (learning mode).
-OPTIONAL_FILES = ("learning.csv",)
+#: Published too where a run has them (the watchdog's table, several arenas, learning mode).
+OPTIONAL_FILES = ("learning.csv", "watchdog.csv", "statistics_per_arena.csv")
 
 
 def finished(run: Path) -> bool:

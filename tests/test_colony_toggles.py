@@ -1,0 +1,77 @@
+"""The colony study's second round: its plan's arithmetic on hand-computed cases."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from benchmarks.colony_toggles import (
+    GROUP,
+    ROBOT_HOUR_WINDOW,
+    Run,
+    cliff_delta,
+    holm,
+    main,
+    per_life,
+    per_robot_hour,
+    study_cells,
+    study_spec,
+)
+
+
+def test_holm_steps_down_and_keeps_the_order() -> None:
+    # sorted: 0.01 x 3 = 0.03; 0.03 x 2 = 0.06; 0.04 x 1 = 0.04, raised to the running 0.06
+    assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
+    assert holm([0.5, 0.6]) == pytest.approx([1.0, 1.0])  # capped at 1
+    adjusted = holm([0.02, math.nan])
+    assert adjusted[0] == pytest.approx(0.02) and math.isnan(adjusted[1])  # NaN is no test
+
+
+def test_cliff_delta_is_the_share_of_pairs_above_minus_below() -> None:
+    assert cliff_delta(np.array([3.0, 4.0]), np.array([1.0, 2.0])) == 1.0
+    assert cliff_delta(np.array([1.0, 3.0]), np.array([2.0])) == 0.0
+    # (2, 5) against (1, 3, 4): 2 beats 1; 5 beats all three; 4 pairs above, 2 below: 2 / 6
+    assert cliff_delta(np.array([2.0, 5.0]), np.array([1.0, 3.0, 4.0])) == pytest.approx(2 / 6)
+
+
+def _run(batteries: list[float], steps: list[int], n_robots: int = 100) -> Run:
+    stats = pd.DataFrame(
+        {"generation": range(len(steps)), "batteries_mean": batteries, "closed_at_step": steps}
+    )
+    return Run("EE-T", 0, n_robots, 0.2, stats, None, stats)
+
+
+def test_the_measures_read_their_windows() -> None:
+    # 100 robots x 0.2 s / 3600: 18,000 steps make 100 robot-hours.
+    hours = [30, 73, 96, 97, 150]
+    run = _run([1.0, 2.0, 4.0, 8.0, 16.0], [h * 180 for h in hours])
+    assert ROBOT_HOUR_WINDOW == (72.0, 96.0)
+    assert per_robot_hour(run) == pytest.approx(3.0)  # 73 and 96 h: in; 30 and 97 h: out
+    short = _run([1.0, 2.0], [30 * 180, 90 * 180])
+    assert math.isnan(per_robot_hour(short))  # never reached 96 robot-hours
+    late = _run(list(map(float, range(60))), [1000 * (g + 1) for g in range(60)])
+    assert per_life(late) == pytest.approx(np.mean(range(50, 60)))
+
+
+def test_the_cells_are_the_plans() -> None:
+    cells = {c.name: c for c in study_cells()}
+    assert {n: c.methods for n, c in cells.items()} == {
+        "t": ("ee",), "tc": ("ee",), "bc": ("ee",), "tw": ("ce", "medea"), "bw": ("ce", "medea"),
+    }  # fmt: skip
+    assert cells["t"].settings["evolution.spare_list"] == "position"
+    assert cells["tc"].settings["evolution.spare_list"] == "colony"
+    assert cells["t"].settings["world.arenas"] == 25
+    assert cells["bc"].settings["world.field_size"] == 11.5
+    assert GROUP["EE-P"].cell is None and GROUP["CE-P"].cell is None
+    spec = study_spec()
+    spec.check()  # every cell's settings are valid
+    assert len(spec.runs) == 8 * 7
+
+
+def test_a_bad_argument_exits_2_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--run", "--workers", "0", "--out", "/nonexistent/never"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--workers" in err[0]
