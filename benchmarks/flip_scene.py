@@ -31,11 +31,15 @@ model with the same seeded random commands, 1 robot (with and without packs) and
 
 **Variants** (``--variant a,b``, :data:`VARIANTS`): one per hypothesis, applied in memory to
 the assembled MJCF tree before compiling or to the compiled arrays (the repository's XML is
-never touched); ``fix`` is the proposed XML change.
+never touched). ``base`` is the model as shipped, which carries the fix (the teeth touch no
+robot); ``published`` restores the collision bits of the model
+the published results were run on, and every hypothesis variant is measured on top of it.
 
-Run: ``python -m benchmarks.flip_scene [--variant base,fix] [--speeds 0.2,0.4] [--cases head8]
+Run: ``python -m benchmarks.flip_scene [--variant published,base] [--speeds 0.2,0.4] [--cases head8]
 [--detail] [--json PATH]``, ``... --sweep 400``, ``... --pile --pile-trials 60``,
-``... --stress [--stress-seconds 150] [--seed 0] [--trace 2]``, ``... --identity``.
+``... --stress [--stress-seconds 150] [--seed 0] [--trace 2]``, ``... --identity``,
+``... --variant published,base --render flip.png`` (the knock that flips the published model,
+drawn from the side at a few times, one row per variant).
 """
 
 from __future__ import annotations
@@ -102,13 +106,15 @@ CASES: tuple[Case, ...] = (
 class Variant:
     """A change to the model: ``mjcf`` edits the assembled MJCF tree before it is compiled,
     ``model`` the compiled arrays of a built world; ``timestep`` replaces the physics step
-    (the scene keeps the simulated times, so it takes more substeps)."""
+    (the scene keeps the simulated times, so it takes more substeps); ``published``: on the
+    published model, whose teeth touch other robots (``WorldConfig.contacts``)."""
 
     name: str
     note: str
     mjcf: Callable[[object], None] | None = None
     model: Callable[[World], None] | None = None
     timestep: float = 1.0 / 120.0
+    published: bool = False
 
 
 def _robot_geoms(root: object, name: str) -> list[Any]:
@@ -181,16 +187,6 @@ def _no_armature(world: World) -> None:
     m.dof_armature[m.jnt_dofadr[hinges]] = 0.0
 
 
-def _fix_bits(root: object) -> None:
-    """The proposed fix, as the XML diff: the chassis gets a collision bit of its own (4) that
-    only chassis accept, and the teeth accept nothing, so teeth touch floor, walls and packs
-    (as before: those accept bit 2) but no robot; chassis touch chassis, floor, walls, packs."""
-    for g in _robot_geoms(root, C.CHASSIS_GEOM):
-        g.contype, g.conaffinity = 6, 4
-    for g in _robot_geoms(root, C.TEETH_GEOM):
-        g.contype, g.conaffinity = 2, 0
-
-
 def _com_lower(world: World) -> None:
     """Chassis centre of mass 1.5 cm lower (2.0 cm above the floor)."""
     m = world.model
@@ -201,32 +197,45 @@ def _com_lower(world: World) -> None:
 VARIANTS: dict[str, Variant] = {
     v.name: v
     for v in (
-        Variant("base", "the model as shipped"),
-        Variant("dt480", "timestep 1/480 s (4x finer)", timestep=1.0 / 480.0),
-        Variant("dt1200", "timestep 1/1200 s (10x finer)", timestep=1.0 / 1200.0),
+        Variant("base", "the model as shipped (the fix: teeth touch no robot)"),
+        Variant("published", "the published model: teeth touch other robots", published=True),
+        Variant(
+            "dt480", "published, timestep 1/480 s (4x finer)", published=True, timestep=1 / 480
+        ),
+        Variant(
+            "dt1200", "published, timestep 1/1200 s (10x finer)", published=True, timestep=1 / 1200
+        ),
         Variant(
             "teeth_mu15",
-            "teeth friction 0.6 -> 0.15 (max rule: pack, wall, floor contacts keep 0.6/1.0)",
+            "published, teeth friction 0.6 -> 0.15 (max rule: pack, wall, floor keep 0.6/1.0)",
+            published=True,
             model=_set(C.TEETH_GEOM, "geom_friction", [0.15, 0.005, 0.0001]),
         ),
         Variant(
             "rr_mu0",
-            "teeth and chassis friction 0 against each other (teeth 0.6->0, chassis 0.15->0)",
+            "published, teeth and chassis friction 0 against each other (0.6, 0.15 -> 0)",
+            published=True,
             model=_chain(
                 _set(C.TEETH_GEOM, "geom_friction", [0.0, 0.005, 0.0001]),
                 _set(C.CHASSIS_GEOM, "geom_friction", [0.0, 0.005, 0.0001]),
             ),
         ),
-        Variant("teeth_off", "teeth do not collide with other robots", model=_teeth_off_robots),
         Variant(
-            "fix",
-            "proposed XML fix: chassis contype 6 conaffinity 4, teeth contype 2 conaffinity 0",
-            mjcf=_fix_bits,
+            "teeth_off",
+            "published, teeth collide with no robot (by a model edit)",
+            published=True,
+            model=_teeth_off_robots,
         ),
-        Variant("wheels_on", "wheel spheres collide with bodies too", model=_wheels_on_bodies),
+        Variant(
+            "wheels_on",
+            "published, wheel spheres collide with bodies too",
+            published=True,
+            model=_wheels_on_bodies,
+        ),
         Variant(
             "hard",
-            "chassis and teeth contacts harder: solimp 0.95 0.99 0.001 (default 0.9 0.95)",
+            "published, chassis and teeth contacts harder: solimp 0.95 0.99 0.001",
+            published=True,
             model=_chain(
                 _set(C.CHASSIS_GEOM, "geom_solimp", [0.95, 0.99, 0.001, 0.5, 2]),
                 _set(C.TEETH_GEOM, "geom_solimp", [0.95, 0.99, 0.001, 0.5, 2]),
@@ -234,7 +243,8 @@ VARIANTS: dict[str, Variant] = {
         ),
         Variant(
             "soft",
-            "chassis and teeth contacts softer: solref 0.05 1",
+            "published, chassis and teeth contacts softer: solref 0.05 1",
+            published=True,
             model=_chain(
                 _set(C.CHASSIS_GEOM, "geom_solref", [0.05, 1.0]),
                 _set(C.TEETH_GEOM, "geom_solref", [0.05, 1.0]),
@@ -242,17 +252,31 @@ VARIANTS: dict[str, Variant] = {
         ),
         Variant(
             "body_floor_mu",
-            "chassis and teeth slide on the floor at 0.15 (not the floor's 1.0)",
+            "published, chassis and teeth slide on the floor at 0.15 (not the floor's 1.0)",
+            published=True,
             model=_no_floor_friction_for_body,
         ),
-        Variant("chassis_down", "chassis box bottom 3.5 -> 3.2 cm", mjcf=_chassis_down),
-        Variant("fix_dt480", "the fix at timestep 1/480 s", mjcf=_fix_bits, timestep=1 / 480),
-        Variant("fix_dt1200", "the fix at timestep 1/1200 s", mjcf=_fix_bits, timestep=1 / 1200),
-        Variant("com_low", "chassis centre of mass 3.5 -> 2.0 cm high", model=_com_lower),
-        Variant("armature0", "wheel armature 0.002 -> 0 kg m^2", model=_no_armature),
         Variant(
-            "fix_armature0", "the fix and wheel armature 0", mjcf=_fix_bits, model=_no_armature
+            "chassis_down",
+            "published, chassis box bottom 3.5 -> 3.2 cm",
+            _chassis_down,
+            published=True,
         ),
+        Variant(
+            "com_low",
+            "published, chassis centre of mass 3.5 -> 2.0 cm high",
+            published=True,
+            model=_com_lower,
+        ),
+        Variant(
+            "armature0",
+            "published, wheel armature 0.002 -> 0 kg m^2",
+            published=True,
+            model=_no_armature,
+        ),
+        Variant("fix_dt480", "the fix at timestep 1/480 s", timestep=1 / 480),
+        Variant("fix_dt1200", "the fix at timestep 1/1200 s", timestep=1 / 1200),
+        Variant("fix_armature0", "the fix and wheel armature 0", model=_no_armature),
     )
 }
 
@@ -278,7 +302,9 @@ def _patched_build(variant: Variant) -> Iterator[None]:
 
 
 def make_world(variant: Variant, config: WorldConfig) -> World:
-    config = dataclasses.replace(config, timestep=variant.timestep)
+    config = dataclasses.replace(
+        config, timestep=variant.timestep, contacts="published" if variant.published else "fixed"
+    )
     with _patched_build(variant):
         world = World(config, np.random.default_rng(0))
     if variant.model is not None:
@@ -547,32 +573,45 @@ def print_matrix(
         )
 
 
+def encounter(
+    world: World, offset: float, phi: float, speed: float, shift: float = 0.0, after: float = 2.0
+) -> tuple[float, float]:
+    """One head-on encounter in a two-robot ``world``: robot 1 approaches at ``phi`` deg from
+    head-on, aimed ``offset`` m to the right of robot 0's nose, both cruising at ``speed`` m/s,
+    robot 0 starting ``shift`` m further forward (the impact's phase within a physics step).
+    Returns the lowest uprightness of either robot and the highest centre of mass (m)."""
+    case = Case("sweep", phi, (NOSE_X, -offset), "")
+    poses, speeds, lead = _start_poses(case, speed)
+    poses[0, 0] += shift
+    start_cruising(world, poses, speeds)
+    lowest, z = 1.0, 0.0
+    for _ in range(round((lead + after) / world.model.opt.timestep)):
+        world.step(1)
+        lowest = min(lowest, float(world.uprightness().min()))
+        z = max(z, float(world.data.subtree_com[world.chassis_body, 2].max()))
+    return lowest, z
+
+
 def sweep(variant: Variant, n: int, seed: int = 5, after: float = 2.0) -> dict[str, Any]:
-    """``n`` random head-on encounters: lateral offset U(0, 14 cm), approach angle
-    U(-10, 10) deg, both robots at the same speed U(0.8, 1.3) m/s, the impact's phase within a
-    physics step drawn too (robot 0 starts up to 2 cm further forward). Counts the runs in
-    which a robot tipped past 60 deg and lists them."""
+    """``n`` random head-on encounters (:func:`encounter`): lateral offset U(0, 14 cm),
+    approach angle U(-10, 10) deg, both robots at the same speed U(0.8, 1.3) m/s, the impact's
+    phase within a physics step drawn too (robot 0 starts up to 2 cm further forward). Counts
+    the runs in which a robot tipped past 60 deg and lists them."""
     world = make_world(variant, WorldConfig(field_size=FIELD, n_robots=2, n_packs=0))
     rng = np.random.default_rng(seed)
     flips, lifted = [], 0
     for _ in range(n):
         b, phi, v = rng.uniform(0.0, 0.14), rng.uniform(-10, 10), rng.uniform(0.8, 1.3)
-        case = Case("sweep", phi, (NOSE_X, -b), "")
-        poses, speeds, lead = _start_poses(case, v)
-        poses[0, 0] += rng.uniform(0, 0.02)
-        start_cruising(world, poses, speeds)
-        lowest, z = 1.0, 0.0
-        for _ in range(round((lead + after) / world.model.opt.timestep)):
-            world.step(1)
-            lowest = min(lowest, float(world.uprightness().min()))
-            z = max(z, float(world.data.subtree_com[world.chassis_body, 2].max()))
+        shift = rng.uniform(0, 0.02)
+        lowest, z = encounter(world, b, phi, v, shift, after)
         lifted += z > 0.055
         if lowest < 0.5:
             flips.append(
                 {
-                    "offset_m": round(b, 3),
-                    "phi_deg": round(phi, 1),
-                    "speed": round(v, 2),
+                    "offset_m": float(b),
+                    "phi_deg": float(phi),
+                    "speed": float(v),
+                    "shift_m": float(shift),
                     "min_up": round(lowest, 3),
                 }
             )
@@ -583,6 +622,59 @@ def sweep(variant: Variant, n: int, seed: int = 5, after: float = 2.0) -> dict[s
         "com_above_5_5cm": int(lifted),
         "flips": flips,
     }
+
+
+#: The encounter of ``--sweep 400`` (seed 5) that throws the published model's robot onto its
+#: back: lateral offset (m), approach angle (deg), speed (m/s), robot 0's head start (m).
+FLIP_KNOCK = (0.07473702742593587, -1.9141885176872258, 1.2563521097066594, 0.013092952307341837)
+#: Seconds after the start at which :func:`render_knock` draws its frames.
+RENDER_TIMES = (0.4, 0.55, 0.7, 1.2, 2.5)
+
+
+def render_knock(
+    variants: list[Variant],
+    path: str,
+    knock: tuple[float, float, float, float] = FLIP_KNOCK,
+    times: tuple[float, ...] = RENDER_TIMES,
+    size: int = 320,
+) -> dict[str, list[float]]:
+    """Draw :data:`FLIP_KNOCK` in each variant (one row each) at ``times`` from the side, the
+    uprightness of the lower robot in each frame's caption; write a PNG to ``path``."""
+    from cyber_rodent.render import draw_caption, write_png
+
+    rows, ups = [], {}
+    for variant in variants:
+        world = make_world(variant, WorldConfig(field_size=FIELD, n_robots=2, n_packs=0))
+        offset, phi, speed, shift = knock
+        case = Case("knock", phi, (NOSE_X, -offset), "")
+        poses, speeds, lead = _start_poses(case, speed)
+        poses[0, 0] += shift
+        start_cruising(world, poses, speeds)
+        m = world.model
+        m.vis.global_.offwidth = max(m.vis.global_.offwidth, size)
+        m.vis.global_.offheight = max(m.vis.global_.offheight, size)
+        renderer = mujoco.Renderer(m, height=size, width=size)
+        camera = mujoco.MjvCamera()
+        camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+        camera.lookat[:] = (NOSE_X, 0.0, 0.05)
+        camera.distance, camera.azimuth, camera.elevation = 0.85, 60.0, -12.0
+        option = mujoco.MjvOption()
+        option.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = False
+        frames, row_ups = [], []
+        for when in times:
+            while world.data.time < when - 1e-9:
+                world.step(1)
+            up = float(world.uprightness().min())
+            renderer.update_scene(world.data, camera, option)
+            image = renderer.render().copy()
+            draw_caption(image, f"{variant.name} t={world.data.time:.2f}s up={up:+.2f}")
+            frames.append(image)
+            row_ups.append(round(up, 3))
+        renderer.close()
+        rows.append(np.concatenate(frames, axis=1))
+        ups[variant.name] = row_ups
+    write_png(np.concatenate(rows, axis=0), path)
+    return ups
 
 
 # --- mass properties ------------------------------------------------------------------------
@@ -974,7 +1066,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--centre-first", action="store_true", help="stress: steer to the centre in 0-5 s"
     )
+    parser.add_argument("--render", default="", help="draw the flipping knock per variant (PNG)")
     args = parser.parse_args(argv)
+    if args.render:
+        ups = render_knock([VARIANTS[v] for v in args.variant.split(",") if v], args.render)
+        print(f"wrote {args.render}; lowest uprightness per frame: {ups}")
+        return
 
     variants = [VARIANTS[v] for v in args.variant.split(",") if v]
     cases = [c for c in CASES if not args.cases or c.name in args.cases.split(",")]

@@ -71,9 +71,12 @@ FIELD_SIZE = 2.3
 
 # --- collision bits (contype / conaffinity) -------------------------------------------------
 # bit 0: ground contacts (wheels and casters touch the floor only);
-# bit 1: bodies (chassis, packs, walls touch each other).
+# bit 1: bodies (chassis, teeth, packs, walls touch each other);
+# bit 2: robot against robot, which only the chassis boxes accept, so the low teeth touch the
+#        floor, walls and packs but no robot (docs/design.md §9.35).
 GROUND_BIT = 1
 BODY_BIT = 2
+ROBOT_BIT = 4
 
 
 def robot_prefix(index: int) -> str:

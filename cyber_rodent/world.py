@@ -27,7 +27,7 @@ from dm_control import mjcf
 
 from cyber_rodent import constants as C
 from cyber_rodent.assets import asset_path
-from cyber_rodent.validation import integer, number, validate_fields
+from cyber_rodent.validation import choice, integer, number, validate_fields
 
 #: Colours of the LED (RGBA). Off is dark green, not invisible: a real LED is still there.
 LED_ON_RGBA = np.array([0.1, 1.0, 0.1, 1.0])
@@ -308,6 +308,15 @@ def _fit_problem(config: WorldConfig) -> str:
     )
 
 
+#: The robots' contact models (:attr:`WorldConfig.contacts`).
+CONTACT_MODELS = ("fixed", "published")
+#: Impedance of the docking hold (the weld of a docked robot) in the fixed contact model: a
+#: robot ramming a docked one from the side at 0.8 m/s for 3 s moves it 2.5 mm (MuJoCo's
+#: default, 0.9-0.95, lets it creep 12.5 mm once the rammer's chassis, not its teeth, does
+#: the pushing; ``tests/test_survival_physics.py``).
+DOCK_HOLD_SOLIMP = (0.95, 0.99, 0.001)
+
+
 @dataclass(frozen=True)
 class WorldConfig:
     """Physical setup of the field.
@@ -351,6 +360,14 @@ class WorldConfig:
             robot sees only its own arena's targets (the walls hide the others too) and IR
             mating pairs only robots of one arena. Adds robots while each keeps the paper's
             local world. The layout is at most :data:`MAX_FIELD_SIZE` wide.
+        contacts: the robots' contact model. ``"fixed"``, the default (docs/design.md
+            §9.35): the charging teeth, which stick out below another robot's body box, touch
+            the floor, walls and packs but no robot, the chassis boxes meet each other
+            (collision bit 4, :data:`cyber_rodent.constants.ROBOT_BIT`), and the docking hold
+            is stiff (:data:`DOCK_HOLD_SOLIMP`). ``"published"``: the model the first
+            published results ran on, whose teeth also touch other robots' bodies (a fast
+            knock could lever a robot onto its back) and whose docking hold has MuJoCo's
+            default impedance.
 
     The counts are bounded by :data:`MAX_ROBOTS` and :data:`MAX_PACKS` and by what fits in
     the field (:func:`fits`; with several arenas, what fits in each): the packs alone in the
@@ -373,6 +390,7 @@ class WorldConfig:
         0, 0, MAX_REACTIVATION_STEPS, unit="control steps", source="docs/design.md §9.26"
     )
     arenas: int = integer(1, 1, MAX_ARENAS, unit="arenas", source="docs/design.md §9.33")
+    contacts: str = choice("fixed", CONTACT_MODELS, source="docs/design.md §9.35")
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -481,10 +499,12 @@ def build_mjcf(
     timestep: float,
     field_size: float = C.FIELD_SIZE,
     arenas: int = 1,
+    contacts: str = "fixed",
 ) -> mjcf.RootElement:
     """The field's MJCF tree with ``n_robots`` robots and ``n_packs`` packs at the origin, in a
     square field of side ``field_size`` (m), or in ``arenas`` such fields side by side
-    (:func:`lay_out_arenas`)."""
+    (:func:`lay_out_arenas`), with the robots' contact model ``contacts``
+    (:attr:`WorldConfig.contacts`)."""
     arena = mjcf.from_path(str(asset_path(C.ARENA_XML)))
     arena.option.timestep = timestep
     resize_field(arena, field_size)
@@ -499,18 +519,24 @@ def build_mjcf(
     for i in range(n_robots):
         robot = mjcf.from_path(robot_file)
         robot.model = f"{C.ROBOT_MODEL_PREFIX}_{i}"
+        if contacts == "published":
+            for name in (C.CHASSIS_GEOM, C.TEETH_GEOM):
+                geom = robot.find("geom", name)
+                geom.contype, geom.conaffinity = C.BODY_BIT, C.BODY_BIT
         frame = arena.attach(robot)
         frame.add("freejoint")
         # Docking hold (cyber_rodent/survival.py): an inactive weld of the chassis to
         # the world. The survival mechanics switch it on while the robot recharges (setting
         # its relative pose to the pose at docking) and off when recharging ends. Inactive
         # equality constraints cost nothing in the solver.
-        arena.equality.add(
+        hold = arena.equality.add(
             "weld",
             name=dock_hold_name(i),
             body1=robot.find("body", C.ROBOT_ROOT_BODY),
             active=False,
         )
+        if contacts == "fixed":
+            hold.solimp = DOCK_HOLD_SOLIMP
     for j in range(n_packs):
         pack = mjcf.from_path(pack_file)
         pack.model = f"{C.PACK_MODEL_PREFIX}_{j}"
@@ -539,7 +565,12 @@ class World:
         self.config = config or WorldConfig()
         cfg = self.config
         self.mjcf_model = build_mjcf(
-            cfg.n_robots, cfg.n_packs, cfg.timestep, cfg.field_size, cfg.arenas
+            cfg.n_robots,
+            cfg.n_packs,
+            cfg.timestep,
+            cfg.field_size,
+            cfg.arenas,
+            cfg.contacts,
         )
         # dm_control evaluates the model once as compiled, every robot stacked at the origin
         # until reset() places them: with contacts on, each robot would touch every other

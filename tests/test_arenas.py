@@ -182,9 +182,24 @@ SEED7_PACKS = [
 
 
 def test_one_arena_is_the_world_before_arenas() -> None:
+    """The published contact model is the MJCF text it was, byte for byte; the fixed model
+    differs from it in the chassis' and the teeth's collision bits and the docking hold's
+    impedance alone."""
+    published = build_mjcf(4, 5, 1.0 / 120.0, contacts="published").to_xml_string()
+    assert hashlib.sha256(published.encode()).hexdigest() == DEFAULT_XML_SHA256
     xml = build_mjcf(4, 5, 1.0 / 120.0).to_xml_string()
-    assert hashlib.sha256(xml.encode()).hexdigest() == DEFAULT_XML_SHA256
     assert build_mjcf(4, 5, 1.0 / 120.0, C.FIELD_SIZE, 1).to_xml_string() == xml
+    assert len(published.splitlines()) == len(xml.splitlines())
+    pairs = zip(published.splitlines(), xml.splitlines(), strict=True)
+    changed = [(a, b) for a, b in pairs if a != b]
+    assert len(changed) == 3 * 4  # chassis, teeth and docking hold of each of the 4 robots
+    for before, after in changed:
+        if "<weld" in before:
+            stiff = 'solimp="0.94999999999999996 0.98999999999999999 0.001"'  # 0.95 0.99 0.001
+            assert after == before.replace('active="false"', f'active="false" {stiff}')
+            continue
+        assert 'contype="2" conaffinity="2"' in before
+        assert ('contype="6" conaffinity="4"' in after) != ('contype="2" conaffinity="0"' in after)
     world = World(WorldConfig(arenas=1), np.random.default_rng(7))
     m = world.model
     assert {name: getattr(m, name) for name in DEFAULT_SIZES} == DEFAULT_SIZES

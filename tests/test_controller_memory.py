@@ -16,6 +16,7 @@ import pytest
 from behaviours import BehaviourPolicies
 from behaviours.kernels import BehaviourInputs, InputBuffers
 from cyber_rodent.cli import main as cli_main
+from cyber_rodent.world import WorldConfig
 from evolution.config import GENOME_LENGTH, CtrnnConfig, EvolutionConfig
 from evolution.controller import NeuralController
 from evolution.controller_kernels import decide_ctrnn, decide_ctrnn_reference
@@ -358,12 +359,15 @@ def test_the_reader_fields_are_documented() -> None:
 
 # --- a config that grows --------------------------------------------------------------------------
 def test_new_fields_at_their_defaults_keep_every_fingerprint() -> None:
-    """The default run's fingerprint is the one it had before `evolution.inputs` and
+    """The published model's run has the fingerprint it had before `evolution.inputs` and
     `evolution.ctrnn` existed (recorded from that commit), so older checkpoints resume; a
-    value other than the default enters it."""
-    assert run_fingerprint(RunConfig(), 3, "x") == (
+    value other than the default enters it. (Today's default runs the fixed contact model,
+    `world.contacts`, a change of behaviour, so its fingerprint differs.)"""
+    published = RunConfig(world=WorldConfig(contacts="published"))
+    assert run_fingerprint(published, 3, "x") == (
         "ffbe8809fcc18cb0d7cc31c0096981667db6c2029e044d500a6c223b901e0b65"
     )
+    assert run_fingerprint(RunConfig(), 3, "x") != run_fingerprint(published, 3, "x")
     other = RunConfig(evolution=EvolutionConfig(ctrnn=CtrnnConfig(tau_high=50.0)))
     assert run_fingerprint(other, 3, "x") != run_fingerprint(RunConfig(), 3, "x")
     inputs = RunConfig(evolution=EvolutionConfig(inputs="paper,wheel_left"))

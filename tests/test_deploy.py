@@ -348,11 +348,11 @@ TINY = RunConfig(evolution=EvolutionConfig(
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
-    """One generation of 8 agents (seed 7: 2 of the 8 completed lives mated)."""
+    """One generation of 8 agents (seed 9: 2 of the 8 completed lives mated)."""
     from evolution.lab.api import run as run_evolution
 
     out = tmp_path_factory.mktemp("runs") / "tiny"
-    run_evolution("ee", 1, 7, config=TINY, out_dir=out)
+    run_evolution("ee", 1, 9, config=TINY, out_dir=out)
     return out
 
 

@@ -657,16 +657,39 @@ def test_default_fingerprint_is_the_earlier_versions() -> None:
     """Fields added since (the controller, the field's size, the mating threshold, ...) are left
     out of the fingerprint at the value that reproduces the earlier behaviour, so checkpoints of
     earlier versions still resume: the paper's run of seed 0 with the vision of before traced
-    pixels (``camera.trace_below`` off) has the fingerprint it had before them. Today's default
-    traces them, which changes what robots see, so its runs must not resume those checkpoints."""
+    pixels (``camera.trace_below`` off) and with the teeth that touched robots
+    (``world.contacts`` published) has the fingerprint it had before them. Today's default
+    traces them and has teeth that touch no robot, which changes what robots see and do, so
+    its runs must not resume those checkpoints, nor those of the published model."""
     import dataclasses
 
     from behaviours import BehaviourPolicies
     from cyber_rodent.vision import CameraConfig
+    from cyber_rodent.world import WorldConfig
     from evolution.runner import RunConfig, policy_identity, run_fingerprint
 
     policies = policy_identity(BehaviourPolicies.load_default())
-    before = dataclasses.replace(RunConfig(), camera=CameraConfig(trace_below=(0, 0, 0)))
+    published = dataclasses.replace(RunConfig(), world=WorldConfig(contacts="published"))
+    before = dataclasses.replace(published, camera=CameraConfig(trace_below=(0, 0, 0)))
     earlier = "05171b5b2de9bc1c2a48c04bddf4cea827e72dec848368c0199181d1a33def13"
     assert run_fingerprint(before, 0, policies, None) == earlier
-    assert run_fingerprint(RunConfig(), 0, policies, None) != earlier
+    today = run_fingerprint(RunConfig(), 0, policies, None)
+    assert today not in (earlier, run_fingerprint(published, 0, policies, None))
+
+
+def test_a_record_without_a_later_field_is_read_as_it_ran() -> None:
+    """A run.json or checkpoint written before a field existed means the behaviour before it:
+    the published model's records lack ``world.contacts`` and ran with teeth that touch
+    robots; those written before ``camera.trace_below`` ran without tracing."""
+    import dataclasses
+
+    from evolution.runner import RunConfig, run_config_from_record
+
+    record = dataclasses.asdict(RunConfig())
+    assert run_config_from_record(record) == RunConfig()  # today's record reads as written
+    del record["world"]["contacts"]
+    del record["camera"]["trace_below"]
+    old = run_config_from_record(record)
+    assert old.world.contacts == "published"
+    assert old.camera.trace_below == (0, 0, 0)
+    assert "contacts" not in record["world"]  # the record itself is left alone

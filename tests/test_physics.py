@@ -130,3 +130,38 @@ def test_rangefinder_sees_other_robots_but_not_itself() -> None:
     assert 0.2 < r[0, 0] < 0.3
     # The side and back sensors see nothing of the robot's own body or wheels.
     assert r[0, 5] == C.RANGE_SENSORS[5][2] and r[0, 6] == C.RANGE_SENSORS[6][2]
+
+
+# --- knocks between two robots (design §9.35) --------------------------------------------------
+#: m/s: below this striker speed no knock can tip the robot over a side edge (its kinetic energy
+#: is less than the 0.72 J the lift over the edge needs, design §9.35).
+NO_FLIP_SPEED = 0.91
+HEAD_ON = ("head0", "head4", "head8", "head12", "still0")
+
+
+def test_no_flip_in_knocks_below_what_the_body_allows() -> None:
+    """Two robots driven into each other: no knock below 0.91 m/s may tip one past 60 deg,
+    whatever the angle, and no head-on knock at any speed up to the top speed (1.3 m/s each:
+    the robots ride up or stop). 400 random head-on encounters as well. The published model
+    (teeth that touch robots) flips in two of those encounters, so the scene can see a flip."""
+    from benchmarks.flip_scene import CASES, VARIANTS, encounter, make_world, run_case, sweep
+
+    config = WorldConfig(field_size=6.0, n_robots=2, n_packs=0)
+    world = make_world(VARIANTS["base"], config)
+    speeds = (0.3, 0.6, 0.9, 1.1, 1.3)
+    worst = {
+        (case.name, v): run_case(world, case, v).min_up
+        for case in CASES
+        for v in speeds
+        if v < NO_FLIP_SPEED or case.name in HEAD_ON
+    }
+    assert min(worst.values()) > 0.5, {k: round(u, 2) for k, u in worst.items() if u <= 0.5}
+    assert sweep(VARIANTS["base"], 400)["past_60"] == 0
+
+    published = make_world(VARIANTS["published"], config)
+    flipped = sweep(VARIANTS["published"], 400)["flips"]
+    assert len(flipped) == 2
+    for f in flipped:  # replayed one by one: each tips the published model, not the shipped one
+        knock = (f["offset_m"], f["phi_deg"], f["speed"], f["shift_m"])
+        assert encounter(published, *knock)[0] < 0.5
+        assert encounter(world, *knock)[0] > 0.5

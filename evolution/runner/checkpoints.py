@@ -51,10 +51,9 @@ from evolution.checkpoint import (
     restore_array,
     save_checkpoint,
 )
-from evolution.config import LearningConfig, ReproductionConfig
 from evolution.genome import Genome
 from evolution.input_kernels import PAPER_INPUTS
-from evolution.runner.config import RunConfig, run_config_from_record
+from evolution.runner.config import LATER_FIELDS, RunConfig, run_config_from_record
 from evolution.runner.fingerprint_fields import FINGERPRINT_FIELDS
 from evolution.runner.settings import settings
 from evolution.runner.world_state import capture_world, restore_world
@@ -107,26 +106,6 @@ def genomes_identity(genomes: Sequence[Genome] | None) -> str | None:
         digest.update(genome.weights.tobytes())
     return digest.hexdigest()
 
-
-#: Config fields added after checkpoints were first written and before new fields were left out
-#: automatically (their path in the config, then the default that reproduces the behaviour
-#: before them): at that default they are left out of the fingerprint, so older checkpoints
-#: still resume. Frozen history: a field added since needs no entry (:func:`_drop_new_defaults`).
-LATER_FIELDS: tuple[tuple[Any, ...], ...] = (
-    ("evolution", "controller", "paper"),
-    ("evolution", "hidden_units", 8),
-    ("evolution", "genetics", "meta_mutation_width", 0.1),
-    ("evolution", "learning", dataclasses.asdict(LearningConfig())),
-    ("evolution", "reproduction", dataclasses.asdict(ReproductionConfig())),
-    ("survival", "capture_rule", "docking"),
-    ("survival", "mate_reflex", False),
-    ("survival", "mate_min_energy", 0.0),
-    ("world", "pack_gap", 0.3),
-    ("world", "pack_wall_clearance", 0.2),
-    ("world", "pack_reactivation_steps", 0),
-    ("world", "field_size", 2.3),
-    ("camera", "trace_below", (0, 0, 0)),
-)
 
 
 def _later_paths() -> frozenset[str]:

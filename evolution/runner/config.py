@@ -13,6 +13,7 @@ is the field's diagonal (``cyber_rodent.vision.follow_field``).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import typing
 from dataclasses import dataclass, field
@@ -23,7 +24,7 @@ from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.validation import choice, validate_fields
 from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig, camera_for_field, follow_field
 from cyber_rodent.world import WorldConfig
-from evolution.config import EvolutionConfig
+from evolution.config import EvolutionConfig, LearningConfig, ReproductionConfig
 from evolution.schemes import scheme, scheme_names
 
 #: Fields that EvolutionConfig and SurvivalConfig share; they must be equal in a run.
@@ -153,6 +154,33 @@ class RunConfig:
         return dataclasses.replace(self, **changes)
 
 
+#: Config fields added after checkpoints were first written and before new fields were left out
+#: automatically (their path in the config, then the default that reproduces the behaviour
+#: before them): at that default they are left out of the fingerprint, so older checkpoints
+#: still resume. Frozen history: a field added since needs no entry (:func:`_drop_new_defaults`),
+#: unless its default changes what a run does (a model fix, such as ``camera.trace_below`` and
+#: ``world.contacts``): such a field enters here with the value that reproduces the
+#: runs before it, so they keep their fingerprints and replay with that value set. A record
+#: written before a field existed is read with the value listed here
+#: (:func:`run_config_from_record`), so that it means what it ran.
+LATER_FIELDS: tuple[tuple[Any, ...], ...] = (
+    ("evolution", "controller", "paper"),
+    ("evolution", "hidden_units", 8),
+    ("evolution", "genetics", "meta_mutation_width", 0.1),
+    ("evolution", "learning", dataclasses.asdict(LearningConfig())),
+    ("evolution", "reproduction", dataclasses.asdict(ReproductionConfig())),
+    ("survival", "capture_rule", "docking"),
+    ("survival", "mate_reflex", False),
+    ("survival", "mate_min_energy", 0.0),
+    ("world", "pack_gap", 0.3),
+    ("world", "pack_wall_clearance", 0.2),
+    ("world", "pack_reactivation_steps", 0),
+    ("world", "field_size", 2.3),
+    ("camera", "trace_below", (0, 0, 0)),
+    ("world", "contacts", "published"),
+)
+
+
 def run_config_from_record(data: object) -> RunConfig:
     """Rebuild a :class:`~evolution.runner.RunConfig` from its ``dataclasses.asdict`` form.
 
@@ -161,11 +189,26 @@ def run_config_from_record(data: object) -> RunConfig:
     """
     if not isinstance(data, dict):
         raise ValueError(f"run.json: config must be a JSON object, got {type(data).__name__}")
+    data = _with_earlier_fields(data)
     try:
         config: RunConfig = _dataclass_from_dict(RunConfig, data)
     except TypeError as err:
         raise ValueError(f"run.json: malformed config ({err})") from None
     return config
+
+
+def _with_earlier_fields(data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` (a record's config) with every :data:`LATER_FIELDS` field it lacks set to the
+    value that reproduces the runs written before the field existed (a copy; sections the
+    record lacks stay absent)."""
+    data = copy.deepcopy(data)
+    for *path, name, value in LATER_FIELDS:
+        section: Any = data
+        for part in path:
+            section = section.get(part) if isinstance(section, dict) else None
+        if isinstance(section, dict) and name not in section:
+            section[name] = copy.deepcopy(value)
+    return data
 
 
 def _dataclass_from_dict(cls: type, values: dict[str, Any]) -> Any:
