@@ -3,7 +3,7 @@
 A finished run's checkpoint holds the whole colony mid-run. This continues it twice for
 ``--steps`` control steps, once as it ran and once with ``survival.rescue`` switched on (and
 ``--set`` changes to the rescue's settings), and prints, per robot, what the watchdog saw:
-its stuck and tipped spells (start, length, or still open at the end), its rescues, how far it
+its stuck and tipped spells (how many, the steps in all, the longest), its rescues, how far it
 got from where it stood at the checkpoint, and the deaths of the agents it ran; and the
 generations each continuation closed. Without the rescue the continuation is the run itself,
 bit for bit (the checkpoint's guarantee), so a jam the run had shows up in it.
@@ -89,18 +89,20 @@ def describe(result: dict[str, Any]) -> str:
     """The continuation in words: one line per robot, then the generations closed."""
     lines = [f"rescue {'on' if result['rescue'] else 'off'}, {result['steps']} control steps:"]
     for robot in result["robots"]:
-        spells = (
-            ", ".join(
-                f"{s['kind']} at +{s['start']} for "
-                + (f"{s['steps']}" if s["steps"] is not None else "the rest (open)")
-                for s in robot["spells"]
-                if s["steps"] is None or s["steps"] >= 100
-            )
-            or "none of 100 steps or more"
-        )
+        parts = []
+        for kind in ("stuck", "tipped"):
+            spells = [s for s in robot["spells"] if s["kind"] == kind]
+            if not spells:
+                continue
+            lengths = [result["steps"] - s["start"] if s["steps"] is None else s["steps"]
+                       for s in spells]  # fmt: skip
+            still = " (the last still on at the end)" if spells[-1]["steps"] is None else ""
+            parts.append(f"{kind} {len(spells)}x, {sum(lengths)} steps in all, longest "
+                         f"{max(lengths)}{still}")  # fmt: skip
         lines.append(
-            f"  CR{robot['robot']}: spells of 100+ steps or still open: {spells}; "
-            f"rescues {robot['rescues']}; agents died {robot['deaths']}; moved {robot['moved_m']} m"
+            f"  CR{robot['robot']}: {'; '.join(parts) or 'never stuck or tipped'}; "
+            f"rescues {robot['rescues']}; agents died {robot['deaths']}; "
+            f"moved {robot['moved_m']} m"
         )
     closed = result["closed_after"]
     lines.append(f"  generations closed: {len(closed)} (after steps {closed[:8]})")

@@ -36,10 +36,11 @@ TROUBLES = (("tip", "tipped", "tipped_end"), ("jam", "stuck", "stuck_end"))
 
 
 def run_dirs(root: Path) -> list[Path]:
-    """The run directories under ``root`` (or ``root`` itself), in name order."""
+    """The finished run directories under ``root`` (or ``root`` itself), in name order: those
+    with an event log, which a run writes when it ends."""
     if (root / "run.json").exists():
         return [root]
-    return sorted(p.parent for p in root.glob("*/run.json"))
+    return sorted(p.parent for p in root.glob("*/run.json") if (p.parent / "events.csv").exists())
 
 
 def episodes(events: pd.DataFrame, start: str, end: str, last_step: int) -> pd.DataFrame:

@@ -61,6 +61,38 @@ def test_a_robot_driving_into_a_wall_is_stuck_after_stuck_steps(backend: str) ->
     assert not any(e.tip_started for _, e in found)
 
 
+def pin(sw: SurvivalWorld, robot: int) -> None:
+    """Hold ``robot`` where it stands as the docking hold does (its weld switched on at its
+    pose), without docking it: a robot pinned by something it cannot move."""
+    m, d = sw.world.model, sw.world.data
+    body, weld = sw.world.chassis_body[robot], sw.docking.hold_eq[robot]
+    quat = d.xquat[body]
+    conj = np.array([quat[0], -quat[1], -quat[2], -quat[3]])
+    relpos = np.empty(3)
+    mujoco.mju_rotVecQuat(relpos, -d.xpos[body], conj)
+    m.eq_data[weld, 3:6], m.eq_data[weld, 6:10] = relpos, conj  # weld row: relpos, relquat
+    d.eq_active[weld] = 1
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_robot_held_while_it_turns_on_the_spot_is_stuck(backend: str) -> None:
+    """Fig. 6's EE seed 19 (published model): two robots each turned in place against the
+    other for 700,000 steps. Robot 1, pinned, commands a turn on the spot at 0.2 m/s (no
+    forward command): 25 steps without turning 0.5 rad, and it is stuck at step 26; released,
+    it turns (0.2 m/s / 0.08 m = 2.5 rad/s, 0.5 rad within a step) and is free again. A free
+    robot turning at the slowest command that counts (0.05 m/s: 0.125 rad per step) is not."""
+    sw, dog, wheels = scene(backend)
+    pin(sw, 1)
+    wheels[1] = (-0.2, 0.2)
+    found = run(sw, dog, wheels, 30)
+    assert [(k, e.stuck_started) for k, e in found if e.stuck_started] == [(26, [1])]
+    sw.world.data.eq_active[sw.docking.hold_eq[1]] = 0
+    found = run(sw, dog, wheels, 3)
+    assert [e.stuck_ended for _, e in found if e.stuck_ended] == [[(1, 6)]]
+    wheels[1] = (-0.05, 0.05)
+    assert all(not e.stuck_started for _, e in run(sw, dog, wheels, 60))
+
+
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
 def test_a_docked_or_idle_robot_is_never_stuck(backend: str) -> None:
     sw, dog, wheels = scene(backend)
@@ -165,20 +197,24 @@ def test_the_compiled_rule_matches_its_reference() -> None:
 
     rng = np.random.default_rng(8)
     n, bodies = 7, 9
-    rules = WatchRules(0.5, 5, 0.05**2, 0.05, 4)
+    rules = WatchRules(0.5, 5, 0.05**2, math.cos(0.5), 0.05, 4)
     states = [
         WatchState(np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64),
-                   np.zeros((n, 2)), np.zeros((n, 2), np.int64), np.zeros(n, np.int64))
+                   np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2), np.int64),
+                   np.zeros(n, np.int64))
         for _ in range(2)
     ]  # fmt: skip
     xmat, xpos = np.zeros((bodies, 9)), np.zeros((bodies, 3))
+    yaw = rng.uniform(-math.pi, math.pi, bodies)
     chassis = np.arange(1, n + 1, dtype=np.int64)
     changes = 0
     for _ in range(400):
         xmat[:, 8] = np.where(rng.random(bodies) < 0.1, rng.uniform(-1, 0.6, bodies), 1.0)
         xpos[:, :2] += rng.normal(0, 0.01, (bodies, 2))
+        yaw += rng.normal(0, 0.15, bodies)  # turning: sometimes 0.5 rad within a few steps
+        xmat[:, 0], xmat[:, 3] = np.cos(yaw) * xmat[:, 8], np.sin(yaw) * xmat[:, 8]
         inputs = WatchInputs(
-            xmat, xpos, chassis, rng.choice([0.0, 0.3, -0.3], (n, 2)), rng.random(n) < 0.1,
+            xmat, xpos, chassis, rng.choice([0.0, 0.3, -0.3, 0.04], (n, 2)), rng.random(n) < 0.1,
             np.where(rng.random(n) < 0.1, 2, 0).astype(np.int64), rng.random(n) < 0.9,
         )  # fmt: skip
         a = watch(rules, inputs, states[0])

@@ -76,10 +76,12 @@ class SurvivalConfig:
         tip_uprightness: the watchdog counts a robot as tipped while its uprightness (chassis
             z-axis · world z) is below this: 0.5, tilted past 60° (docs/design.md §9.35).
         stuck_steps: the watchdog counts a robot as stuck after this many control steps in a
-            row of commanding motion without getting ``stuck_distance`` away, neither docked
-            nor in its reflex (25 steps: 5 s).
+            row of commanding motion (driving or turning) without getting ``stuck_distance``
+            away or turning ``stuck_turn``, neither docked nor in its reflex (25 steps: 5 s).
         stuck_distance: m, the progress that keeps a robot that commands motion from being
             stuck (5 s at the slowest forward command would cover over 0.3 m).
+        stuck_turn: rad, the turn that keeps a robot that commands motion from being stuck
+            (5 s at the slowest turning command would turn it 3.1 rad).
         rescue: an experimenter rescues robots: after ``rescue_after_steps`` control steps
             tipped or stuck, a robot is set upright at rest at the nearest free spot, its energy
             and agent unchanged. Off: the paper's robots were never helped.
@@ -132,6 +134,9 @@ class SurvivalConfig:
     )
     stuck_distance: float = number(
         0.05, 0.0, 1.0, low_open=True, unit="m", source="docs/design.md §9.35"
+    )
+    stuck_turn: float = number(
+        0.5, 0.0, math.pi, low_open=True, unit="rad", source="docs/design.md §9.35"
     )
     rescue: bool = boolean(False, source="docs/design.md §9.35")
     rescue_after_steps: int = integer(

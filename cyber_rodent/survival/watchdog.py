@@ -5,12 +5,15 @@ A robot is
 
 - **tipped** while its uprightness (the chassis' z-axis · the world's z) is below
   ``survival.tip_uprightness`` (default 0.5: tilted past 60°);
-- **stuck** once it has commanded motion along its heading (the mean of its two wheel commands
-  at least :data:`MOVING_COMMAND`, so a turn on the spot does not count) for
+- **stuck** once it has commanded motion (driving: the mean of its two wheel commands, or
+  turning: half their difference, at least :data:`MOVING_COMMAND` in size) for
   ``survival.stuck_steps`` control steps in a row without getting ``survival.stuck_distance``
-  from where that run of steps began, while neither docked nor in its reflex, and while its
-  robot runs an agent (an idle robot commands nothing). It stays stuck until it gets that far
-  or stops commanding motion.
+  from where that run of steps began or turning ``survival.stuck_turn`` from the heading it
+  had there, while neither docked nor in its reflex, and while its robot runs an agent (an
+  idle robot commands nothing). It stays stuck until it gets that far, turns that much or
+  stops commanding motion. A robot held while it tries to turn on the spot is as stuck as one
+  held while it drives: Fig. 6's EE seed 19 of the published model lost 700,000 control steps
+  to two robots that each turned in place against the other.
 
 The watchdog only observes: it reads poses, commands and flags and changes nothing, so a run
 with it is the run without it. The **rescue** (``survival.rescue``, off by default: the paper's
@@ -45,7 +48,8 @@ from cyber_rodent.survival.watchdog_kernels import (
 )
 from cyber_rodent.world import World
 
-#: m/s: the mean wheel command from which a robot is taken to be trying to move.
+#: m/s: the drive (mean wheel command) or turn (half their difference) command from which a
+#: robot is taken to be trying to move.
 MOVING_COMMAND = 0.05
 
 
@@ -91,7 +95,8 @@ class Watchdog:
         docked: (n,) bool, the survival world's docked flags.
         reflex_steps: (n,) int, the survival world's reflex steps still to run.
         active: (n,) bool, robots that run an agent (None: all, always).
-        tip_uprightness, stuck_steps, stuck_distance, rescue, rescue_after_steps: the rules
+        tip_uprightness, stuck_steps, stuck_distance, stuck_turn, rescue, rescue_after_steps:
+            the rules
             (``survival.*``, :class:`~cyber_rodent.survival.SurvivalConfig`).
         backend: ``"numba"`` or ``"numpy"``.
 
@@ -110,6 +115,7 @@ class Watchdog:
         tip_uprightness: float = 0.5,
         stuck_steps: int = 25,
         stuck_distance: float = 0.05,
+        stuck_turn: float = 0.5,
         rescue: bool = False,
         rescue_after_steps: int = 25,
         backend: Backend = DEFAULT_BACKEND,
@@ -118,12 +124,13 @@ class Watchdog:
         n = world.config.n_robots
         self.rules = WatchRules(
             float(tip_uprightness), int(stuck_steps), float(stuck_distance) ** 2,
-            MOVING_COMMAND, int(rescue_after_steps) if rescue else 0,
+            math.cos(float(stuck_turn)), MOVING_COMMAND,
+            int(rescue_after_steps) if rescue else 0,
         )  # fmt: skip
         self.state = WatchState(
             np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64),
-            np.zeros(n, dtype=np.int64), np.zeros((n, 2)), np.zeros((n, 2), dtype=np.int64),
-            np.zeros(n, dtype=np.int64),
+            np.zeros(n, dtype=np.int64), np.zeros((n, 2)), np.zeros((n, 2)),
+            np.zeros((n, 2), dtype=np.int64), np.zeros(n, dtype=np.int64),
         )  # fmt: skip
         if active is None:
             active = np.ones(n, dtype=bool)
@@ -169,10 +176,11 @@ class Watchdog:
             events.stuck_ended.append((robot, int(state.stuck_steps[robot])))
         state.tipped_steps[robot] = state.stuck_steps[robot] = state.trying[robot] = 0
         state.anchor[robot] = spot
+        state.anchor_heading[robot] = world.data.xmat[world.chassis_body[robot]][[0, 3]]
         events.rescued.append((robot, trouble))
 
     # --- checkpoint state ------------------------------------------------------------------
-    _SAVED = ("tipped_steps", "stuck_steps", "trying", "anchor")
+    _SAVED = ("tipped_steps", "stuck_steps", "trying", "anchor", "anchor_heading")
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """The watchdog's counters (what a checkpoint stores)."""
@@ -185,6 +193,9 @@ class Watchdog:
             ValueError: an array of another shape.
         """
         for name in self._SAVED:
+            if name not in saved:  # written before the turning rule: the run restarts there
+                getattr(self.state, name)[...] = 0.0
+                continue
             target, value = getattr(self.state, name), np.asarray(saved[name])
             if value.shape != target.shape:
                 raise ValueError(f"watchdog {name}: shape {value.shape}, expected {target.shape}")

@@ -30,7 +30,8 @@ class WatchRules(NamedTuple):
     tip_uprightness: float  #: tipped below this uprightness
     stuck_limit: int  #: control steps of commanded motion without progress: stuck
     stuck_distance2: float  #: m², the squared progress that restarts the count
-    moving_command: float  #: m/s, the mean wheel command that counts as commanding motion
+    stuck_cos: float  #: cosine of the turn (from the heading where the run began) that does too
+    moving_command: float  #: m/s, the drive or turn command that counts as commanding motion
     rescue_after: int  #: control steps tipped or stuck before a rescue is due (0: never)
 
 
@@ -53,6 +54,7 @@ class WatchState(NamedTuple):
     stuck_steps: Ints  #: (n,) control steps stuck so far (0: not stuck)
     trying: Ints  #: (n,) control steps of commanded motion without progress
     anchor: Floats  #: (n, 2) where the current run of such steps began
+    anchor_heading: Floats  #: (n, 2) the chassis' x axis (world x, y) when it began
     ended: Ints  #: (n, 2) out: how long a tip (column 0), a jam (1) that ended lasted
     change: Ints  #: (n,) out: what changed this step (bits)
 
@@ -74,17 +76,23 @@ def watch(rules: WatchRules, inputs: WatchInputs, state: WatchState) -> bool:
             state.ended[i, 0] = state.tipped_steps[i]
             state.tipped_steps[i] = 0
         x, y = inputs.xpos[body, 0], inputs.xpos[body, 1]
+        hx, hy = inputs.xmat[body, 0], inputs.xmat[body, 3]
         mean = (inputs.wheels[i, 0] + inputs.wheels[i, 1]) * 0.5
+        turn = (inputs.wheels[i, 1] - inputs.wheels[i, 0]) * 0.5
         moving = (
-            abs(mean) >= rules.moving_command
+            max(abs(mean), abs(turn)) >= rules.moving_command
             and inputs.active[i]
             and not inputs.docked[i]
             and inputs.reflex_steps[i] == 0
             and not tipped
         )
         dx, dy = x - state.anchor[i, 0], y - state.anchor[i, 1]
-        if not moving or dx * dx + dy * dy > rules.stuck_distance2:
+        ax, ay = state.anchor_heading[i, 0], state.anchor_heading[i, 1]
+        norms = (hx * hx + hy * hy) * (ax * ax + ay * ay)
+        turned = norms <= 0.0 or hx * ax + hy * ay < rules.stuck_cos * np.sqrt(norms)
+        if not moving or dx * dx + dy * dy > rules.stuck_distance2 or turned:
             state.anchor[i, 0], state.anchor[i, 1] = x, y
+            state.anchor_heading[i, 0], state.anchor_heading[i, 1] = hx, hy
             state.trying[i] = 0
         else:
             state.trying[i] += 1
@@ -118,13 +126,21 @@ def watch_reference(rules: WatchRules, inputs: WatchInputs, state: WatchState) -
     state.tipped_steps[tipped] += 1
     state.tipped_steps[~tipped] = 0
     position = inputs.xpos[body, :2]
+    heading = inputs.xmat[body][:, [0, 3]]
     mean = (inputs.wheels[:, 0] + inputs.wheels[:, 1]) * 0.5
-    moving = (np.abs(mean) >= rules.moving_command) & inputs.active & ~inputs.docked
+    turn = (inputs.wheels[:, 1] - inputs.wheels[:, 0]) * 0.5
+    command = np.maximum(np.abs(mean), np.abs(turn))
+    moving = (command >= rules.moving_command) & inputs.active & ~inputs.docked
     moving &= (inputs.reflex_steps == 0) & ~tipped
     gap = position - state.anchor
     far = gap[:, 0] * gap[:, 0] + gap[:, 1] * gap[:, 1] > rules.stuck_distance2
-    restart = ~moving | far
+    h, a = heading, state.anchor_heading
+    norms = (h[:, 0] * h[:, 0] + h[:, 1] * h[:, 1]) * (a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1])
+    dot = h[:, 0] * a[:, 0] + h[:, 1] * a[:, 1]
+    turned = (norms <= 0.0) | (dot < rules.stuck_cos * np.sqrt(norms))
+    restart = ~moving | far | turned
     state.anchor[restart] = position[restart]
+    state.anchor_heading[restart] = heading[restart]
     state.trying[restart] = 0
     state.trying[~restart] += 1
     stuck = state.trying >= rules.stuck_limit
