@@ -5,9 +5,12 @@ evolutionary experiments" (§3.4). An episode here runs on the evolution runner'
 a :class:`~cyber_rodent.survival.SurvivalWorld` (MuJoCo physics, docking by teeth/electrode
 contact, IR mating) and the geometric vision provider, stepped one control step
 (``SurvivalConfig.control_dt``, 0.2 s by default) at a time with the discrete wheel commands. The
-dm-control tasks of :mod:`cyber_rodent.tasks` wrap the same objects with the same start
-conditions; we drive the world directly because training needs hundreds of thousands of steps and
-the episode loop is then the only overhead.
+episode loop is the one every task interface runs (:class:`~cyber_rodent.tasks.episode.
+TaskEpisode`: the dm-control tasks, the Gymnasium and PettingZoo environments): reset with the
+start draws, step, termination, the release of a docking, the reward's terms. A
+:class:`BehaviourEpisode` adds the behaviours' inputs and the hardware-like profiles; it drives
+the world directly, without dm-control, because training needs hundreds of thousands of steps
+and the episode loop is then the only overhead.
 
 Episode settings: the task of the behaviour's name, as its spec declares it
 (:mod:`cyber_rodent.tasks.spec`, which the dm-control tasks and the Gymnasium environments read

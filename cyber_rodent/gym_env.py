@@ -18,8 +18,10 @@ on its lean path, with the geometric vision by default.
 
 Tasks: each environment runs the spec of its task (:mod:`cyber_rodent.tasks.spec`, the one
 definition the dm-control tasks and the behaviour episodes read too; its ``gym`` variant, which
-for Survival is one robot alone), and nothing here depends on a task's name. A task added to
-the registry is an environment at once (``CyberRodentEnv(name)``). The built-in ones:
+for Survival is one robot alone) through the episode loop every interface shares
+(:class:`~cyber_rodent.tasks.episode.TaskEpisode`: reset and start draws, step, termination,
+reward terms, observation), and nothing here depends on a task's name. A task added to the
+registry is an environment at once (``CyberRodentEnv(name)``). The built-in ones:
 
 * ``CyberRodent/Forage-v0``: 1 robot, 5 packs; the start is re-drawn until the robot sees a
   pack. Terminates with success when the robot docks onto a pack.
@@ -127,6 +129,11 @@ reward, in this order).
 
 Rendering: ``render_mode="rgb_array"`` returns the top-down view of the field
 (:class:`cyber_rodent.render.FieldRenderer`, off-screen MuJoCo).
+
+Options: a :class:`GymConfig` (``CyberRodentEnv(config=GymConfig(...))``), or its fields as
+keywords (``CyberRodentEnv("forage", action="continuous")``, and ``gymnasium.make``'s kwargs);
+what the PettingZoo colony shares with these environments (its options' base
+:class:`~cyber_rodent.rl_env.EnvConfig`, actions, render, close) is :mod:`cyber_rodent.rl_env`.
 
 Seeding: ``reset(seed=...)`` seeds ``env.np_random``, the one generator of the placement, the
 start re-draws and the rotation reflexes (vision noise, if configured, draws from a child of it);
