@@ -143,7 +143,6 @@ the same seed and actions give the same trajectory, bit for bit.
 from __future__ import annotations
 
 import dataclasses
-import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, SupportsFloat
@@ -177,7 +176,7 @@ from cyber_rodent.tasks.episode import TaskEpisode, task_rules
 from cyber_rodent.tasks.rewards import EpisodeConfig, RewardScales
 from cyber_rodent.tasks.spec import BUILT_IN, SURVIVAL, TaskSpec, task_names, task_spec
 from cyber_rodent.validation import boolean, choice
-from cyber_rodent.vision import VisionNoise
+from cyber_rodent.vision import VisionFrame, VisionNoise
 
 if TYPE_CHECKING:
     from cyber_rodent.vision.rendered import RenderedVision
@@ -326,7 +325,7 @@ class CyberRodentEnv(FieldEnv, gym.Env[Observation, Any]):
         self.task_episode = TaskEpisode(
             spec,
             self.survival,
-            functools.partial(nearest_frame, self.vision),
+            self._nearest,
             reward=config.reward,
             scales=RewardScales.from_episode(episode) if shaped else RewardScales(),
             rewarded=1,
@@ -395,6 +394,11 @@ class CyberRodentEnv(FieldEnv, gym.Env[Observation, Any]):
         return self._observation(0), reward, step.terminated, step.truncated, step.info()
 
     # --- internals -------------------------------------------------------------------------------
+    def _nearest(self) -> VisionFrame:
+        """What the robots see, as the episode loop looks (the module's :func:`nearest_frame`,
+        looked up at each call: ``benchmarks/rl_throughput.py --before-after`` swaps it)."""
+        return nearest_frame(self.vision)
+
     def _pixel_source(self) -> tuple[RenderedVision, bool]:
         """The renderer of the omni strips: the vision itself if it renders, else its own one."""
         from cyber_rodent.vision.rendered import RenderedVision  # needs OpenGL: import lazily

@@ -16,7 +16,6 @@ names come from the registry alone: :func:`task_names`.
 """
 
 from cyber_rodent.tasks.base import OBSERVATION_NAMES, CyberRodentTask, task_class
-from cyber_rodent.tasks.episode import EpisodeStep, TaskEpisode
 from cyber_rodent.tasks.environment import (
     TASK_NAMES,
     TASKS,
@@ -27,6 +26,7 @@ from cyber_rodent.tasks.environment import (
     Survival,
     load,
 )
+from cyber_rodent.tasks.episode import EpisodeStep, TaskEpisode
 from cyber_rodent.tasks.spec import TaskSpec, register, task_names, task_spec, unregister
 
 __all__ = [
