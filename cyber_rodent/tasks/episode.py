@@ -5,14 +5,14 @@ A :class:`TaskEpisode` runs the task of a :class:`~cyber_rodent.tasks.spec.TaskS
 Task/Environment split, written once; each interface is a thin adapter that turns its own
 action into the episode's commands and the step's result into its own return values:
 
-==============================================  =============================================
-interface                                       adapter
-==============================================  =============================================
-dm-control (``tasks.load``)                     :class:`cyber_rodent.tasks.base.CyberRodentTask`
-Gymnasium (``CyberRodent/<Task>-v0``)           :class:`cyber_rodent.gym_env.CyberRodentEnv`
-PettingZoo (``colony_env.parallel_env``)        :class:`cyber_rodent.colony_env.ColonyEnv`
-the behaviours' training and evaluation         ``behaviours.episodes.BehaviourEpisode``
-==============================================  =============================================
+=========================================  ===================================================
+interface                                  adapter
+=========================================  ===================================================
+dm-control (``tasks.load``)                :class:`cyber_rodent.tasks.base.CyberRodentTask`
+Gymnasium (``CyberRodent/<Task>-v0``)      :class:`cyber_rodent.gym_env.CyberRodentEnv`
+PettingZoo (``colony_env.parallel_env``)   :class:`cyber_rodent.colony_env.ColonyEnv`
+the behaviours' episodes (training, eval)  ``behaviours.episodes.BehaviourEpisode``
+=========================================  ===================================================
 
 What the episode owns, and the adapters never write again:
 
