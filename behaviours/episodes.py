@@ -5,9 +5,12 @@ evolutionary experiments" (§3.4). An episode here runs on the evolution runner'
 a :class:`~cyber_rodent.survival.SurvivalWorld` (MuJoCo physics, docking by teeth/electrode
 contact, IR mating) and the geometric vision provider, stepped one control step
 (``SurvivalConfig.control_dt``, 0.2 s by default) at a time with the discrete wheel commands. The
-dm-control tasks of :mod:`cyber_rodent.tasks` wrap the same objects with the same start
-conditions; we drive the world directly because training needs hundreds of thousands of steps and
-the episode loop is then the only overhead.
+episode loop is the one every task interface runs (:class:`~cyber_rodent.tasks.episode.
+TaskEpisode`: the dm-control tasks, the Gymnasium and PettingZoo environments): reset with the
+start draws, step, termination, the release of a docking, the reward's terms. A
+:class:`BehaviourEpisode` adds the behaviours' inputs and the hardware-like profiles; it drives
+the world directly, without dm-control, because training needs hundreds of thousands of steps
+and the episode loop is then the only overhead.
 
 Episode settings: the task of the behaviour's name, as its spec declares it
 (:mod:`cyber_rodent.tasks.spec`, which the dm-control tasks and the Gymnasium environments read
@@ -93,16 +96,15 @@ from cyber_rodent.profiles import (
     randomised,
 )
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
+from cyber_rodent.tasks.episode import TaskEpisode
 from cyber_rodent.tasks.rewards import (
     COVERAGE_CELL,
     EpisodeConfig,
     RewardScales,
-    TaskRewards,
     coverage_cells,
     episode_rules,
     search_reward,
     shaping_reward,
-    total_reward,
 )
 from cyber_rodent.tasks.spec import task_spec
 from cyber_rodent.vision import CameraConfig, VisionFrame, make_provider
@@ -195,23 +197,27 @@ class BehaviourEpisode:
             self._drive_as_built = (
                 m.actuator_gainprm.copy(), m.actuator_dynprm.copy(), m.geom_friction.copy()
             )  # fmt: skip
-        self.n_learners = task.n_learners(robots)
         self.dt = survival_cfg.control_dt
-        switches = task.switch_values(robots)
-        self._wheels = np.zeros((robots, 2))
-        self._led = switches["led"]
-        self._mate = switches["mate"]
-        self._recharge = switches["recharge"]
-        self._collided = np.zeros(robots, dtype=bool)
-        self.rewards = TaskRewards(
-            task.shaped,
-            RewardScales.from_episode(self.config),
+        self._states = np.zeros((0, 2))
+        # The task's episode loop: the shaped reward of every learner, contacts measured.
+        self.episode = TaskEpisode(
+            task,
             self.survival,
-            self.n_learners,
-            task.target,
+            self._look,
+            reward="shaped",
+            scales=RewardScales.from_episode(self.config),
+            episode_steps=self.config.max_steps,
+            max_start_draws=self.config.max_start_draws,
+            collisions=True,
         )
-        self.steps = 0
+        self.n_learners = self.episode.k
+        self.rewards = self.episode.rewards
         self.positions: list[tuple[float, float]] = []
+
+    @property
+    def steps(self) -> int:
+        """Control steps of the current episode so far."""
+        return self.episode.steps
 
     # --- episode ---------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator) -> np.ndarray:
@@ -222,36 +228,16 @@ class BehaviourEpisode:
         """
         if self.profile is not None:
             self._apply_profile(self.profile, rng.spawn(1)[0])
-        for _ in range(self.config.max_start_draws):
-            self.survival.reset(rng)
-            self.world.set_led(self._led)
-            states = self._observe()
-            if self._start_ok():
-                break
-        else:
-            raise RuntimeError(
-                f"{self.name}: no start placement met the start condition in "
-                f"{self.config.max_start_draws} draws"
-            )
-        self.steps = 0
-        self.rewards.reset(self._frame)
-        return states
+        self.episode.reset(rng)
+        return self._states
 
     def step(self, commands: np.ndarray) -> StepResult:
         """Drive the learners with wheel commands (k,) for one control step."""
         k = self.n_learners
-        self._wheels[:k] = COMMAND_SPEEDS[np.asarray(commands, dtype=np.int64)]
-        self.rewards.begin()
-        events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
-        self.steps += 1
-        states = self._observe()
-        self.survival.collisions(out=self._collided)
-        terminal = self.task.reached(events)
-        if self.task.release_docking:  # recharging is not the behaviour's job
-            for robot in range(k):
-                self.survival.end_recharge(robot, reflex=False)
-        rewards = total_reward(self.rewards.end(events, self._frame, terminal, self._collided))
-        return StepResult(states, rewards, terminal, self._collided[:k].copy())
+        self.episode.wheels[:k] = COMMAND_SPEEDS[np.asarray(commands, dtype=np.int64)]
+        step = self.episode.step()
+        assert step.collided is not None  # measured every step
+        return StepResult(self._states, step.reward, step.terminated, step.collided[:k].copy())
 
     def position(self) -> np.ndarray:
         """(x, y) of robot 0's centre, m."""
@@ -289,6 +275,12 @@ class BehaviourEpisode:
             self._range_noise.apply(ranges)
         return ranges
 
+    def _look(self) -> VisionFrame | None:
+        """The learners' inputs now (:attr:`_states`), and what the robots see (None without
+        vision): the episode loop's ``look``."""
+        self._states = self._observe()
+        return self._frame
+
     def _observe(self) -> np.ndarray:
         k = self.n_learners
         vision = self.vision
@@ -298,10 +290,6 @@ class BehaviourEpisode:
         self._frame = vision.observe()
         inputs = behaviour_inputs(self._frame, self._ranges(), self.world.range_max)
         return inputs.of(self.behaviour)[:k].copy()
-
-    def _start_ok(self) -> bool:
-        start = self.task.start
-        return start is None or (self._frame is not None and start.holds(self._frame))
 
 
 def random_commands(rng: np.random.Generator, k: int) -> np.ndarray:

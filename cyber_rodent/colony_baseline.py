@@ -33,16 +33,17 @@ there, with the name).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from cyber_rodent.robot_step import MATE, ReferenceController
 
 if TYPE_CHECKING:
-    from cyber_rodent.colony_env import ColonyEnv
+    from cyber_rodent.survival import SurvivalWorld
 
 #: The entries of an observation the step reads, and their units.
 _TARGETS = ("led", "face", "battery")
@@ -55,6 +56,22 @@ _UNITS = {
     "docked": "flag",
     "recharge_steps": "control steps",
 }
+
+
+class Colony(Protocol):
+    """What the policy reads of its environment (:class:`~cyber_rodent.colony_env.ColonyEnv`
+    has it; this module does not import that one, which re-exports this)."""
+
+    observation_names: Sequence[str]
+    observation_units: Sequence[str]
+    action_names: Sequence[str]
+    action_kind: str
+    max_wheel_speed: float
+    possible_agents: list[str]
+    agents: list[str]
+    survival: SurvivalWorld
+
+    def raw_observations(self) -> dict[str, np.ndarray]: ...
 
 
 def baseline_dir() -> Path:
@@ -81,7 +98,7 @@ class BaselinePolicy:
 
     def __init__(
         self,
-        env: ColonyEnv,
+        env: Colony,
         agents: list[int] | None = None,
         bundle_dir: str | Path | None = None,
     ) -> None:
@@ -160,9 +177,9 @@ class BaselinePolicy:
         return {agent: self.action(agent, raw[agent]) for agent in self.env.agents}
 
 
-def baseline_policy(env: ColonyEnv, **options: Any) -> BaselinePolicy:
+def baseline_policy(env: Colony, **options: Any) -> BaselinePolicy:
     """The colony's ready policy (module docstring); ``options`` as :class:`BaselinePolicy`'s."""
     return BaselinePolicy(env, **options)
 
 
-__all__ = ["BaselinePolicy", "baseline_dir", "baseline_policy"]
+__all__ = ["BaselinePolicy", "Colony", "baseline_dir", "baseline_policy"]

@@ -44,7 +44,11 @@ Action (per agent; ``env.action_names``):
 
 The colony is the ``survival`` task of :mod:`cyber_rodent.tasks.spec` (:data:`TASK`) with every
 robot an agent: its field, switches and episode length are the defaults here, and its sparse
-reward's terms are the reward.
+reward's terms are the reward. Any registered task runs the same way (``task="forage"``, or
+one a user registered): its learners are the agents (the others parked), its open switches
+follow the wheel command in each action, its start condition and termination are the task's,
+and its sparse reward is each agent's. The episode loop is the one every interface shares,
+:class:`~cyber_rodent.tasks.episode.TaskEpisode`.
 
 Reward (per agent and step), by default: +1 (``dock_reward``, term ``capture``) for each
 captured battery (``StepEvents.captured``, by the rules' ``capture_rule``) and +1
@@ -70,44 +74,30 @@ which dock, recharge and mate from the first steps. It reads the physical observ
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv  # type: ignore[import-untyped]  # no type hints
 
-from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
 from cyber_rodent.colony_baseline import BaselinePolicy, baseline_policy  # noqa: F401
-from cyber_rodent.gym_env import (
-    ACTION_KINDS,
-    DEFAULT_MAX_WHEEL_SPEED,
-    action_names,
-    action_space,
-    check_max_wheel_speed,
-    decode_action,
-)
-from cyber_rodent.observations import (
-    OBSERVATION_NAMES,
-    OBSERVATION_UNITS,
-    ObservationBounds,
-    ObservationLimits,
-    check_observation,
-    nearest_frame,
-    robot_observations,
-)
-from cyber_rodent.render import FieldRenderer, check_image_size
-from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
-from cyber_rodent.tasks.rewards import RewardScales, TaskRewards, total_reward
-from cyber_rodent.tasks.spec import SURVIVAL
-from cyber_rodent.validation import check_choice, check_integer, check_number
-from cyber_rodent.vision import PROVIDER_NAMES, CameraConfig, VisionFrame, make_provider
-from cyber_rodent.world import World, WorldConfig
+from cyber_rodent.observations import nearest_frame
+from cyber_rodent.rl_env import EnvConfig, FieldEnv, action_names, action_space
+from cyber_rodent.tasks.episode import TaskEpisode, task_rules
+from cyber_rodent.tasks.rewards import RewardScales
+from cyber_rodent.tasks.spec import SURVIVAL, Field, task_names, task_spec
+from cyber_rodent.validation import check_integer, choice, number
 
 #: The task of the colony: Survival, every robot an agent (its field, rewards, switches and
 #: episode length are the defaults here).
 TASK = SURVIVAL
 #: The switches of a colony agent's action, after the wheel command.
 SWITCHES = TASK.switches
+#: The most control steps ``max_cycles`` allows.
+MAX_CYCLES = 10_000_000
 
 
 def agent_name(robot: int) -> str:
@@ -115,25 +105,57 @@ def agent_name(robot: int) -> str:
     return f"robot_{robot}"
 
 
-class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hints
-    """The colony: every robot an agent of one survival world (see the module docstring).
+@dataclass(frozen=True)
+class ColonyConfig(EnvConfig):
+    """The options of a :class:`ColonyEnv`: those of :class:`~cyber_rodent.rl_env.EnvConfig`
+    (``action``, ``observation``, ``vision``, ``camera``, ``survival``, ``max_wheel_speed``,
+    ``render_mode``, ``render_width``, ``render_height``, ``backend``) and these.
+
+    Attributes:
+        task: a registered task (:func:`~cyber_rodent.tasks.spec.task_names`); its learners
+            are the agents.
+        n_robots: robots in the field, ≥ the task's learners (None: the task's field).
+        n_packs: battery packs (None: the task's field).
+        max_cycles: control steps after which every agent is truncated, ≥ 1 (None: the task's
+            episode length).
+        dock_reward: reward of a captured battery (term ``capture``).
+        mate_reward: reward of an IR exchange, to each partner (term ``mating``).
+
+    Raises:
+        ValueError: one line naming the first invalid field and what it allows.
+    """
+
+    task: str = choice(TASK.name, task_names)
+    n_robots: int | None = None
+    n_packs: int | None = None
+    max_cycles: int | None = None
+    dock_reward: float = number(1.0)
+    mate_reward: float = number(1.0)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.max_cycles is not None:
+            check_integer("max_cycles", self.max_cycles, 1, MAX_CYCLES)
+
+
+class ColonyEnv(FieldEnv, ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hints
+    """The colony: every learner an agent of one survival world (see the module docstring).
 
     Args:
-        n_robots: robots (agents), ≥ 1.
-        n_packs: battery packs.
-        action: ``"discrete"`` or ``"continuous"``.
-        observation: ``"normalised"`` (in [0, 1], bearings in [−1, 1]) or ``"raw"``
-            (physical units); :mod:`cyber_rodent.observations`.
-        survival: the survival rules (default: the paper's).
-        max_cycles: control steps after which every agent is truncated, ≥ 1.
-        dock_reward: reward of a captured battery.
-        mate_reward: reward of an IR exchange, to each partner.
-        vision: ``"geometric"`` (default) or ``"rendered"``.
-        camera: the omni camera (default :class:`CameraConfig`).
-        max_wheel_speed: bound of the continuous wheel speeds, m/s, in (0, 1.3].
-        render_mode: None or ``"rgb_array"``.
-        render_width, render_height: size of a rendered image, px.
-        backend: ``"numba"`` or ``"numpy"`` kernels (the same trajectories).
+        config: the options (:class:`ColonyConfig`; default: its defaults, the paper's colony).
+        **options: any field of :class:`ColonyConfig` by name, over ``config``: ``task``,
+            ``n_robots``, ``n_packs``, ``action`` (``"discrete"`` or ``"continuous"``),
+            ``observation`` (``"normalised"`` or ``"raw"``), ``survival``, ``max_cycles``,
+            ``dock_reward``, ``mate_reward``, ``vision``, ``camera``, ``max_wheel_speed``,
+            ``render_mode``, ``render_width``, ``render_height``, ``backend``.
+
+    Attributes:
+        config: the options.
+        task_spec: the task.
+        task_episode: its episode loop (:class:`~cyber_rodent.tasks.episode.TaskEpisode`).
+        max_cycles: control steps after which every agent is truncated (settable, as
+            PettingZoo's ``parallel_api_test`` does).
+        steps: control steps of the current episode.
 
     Raises:
         ValueError: for an invalid option (the message names it).
@@ -146,84 +168,57 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         "is_parallelizable": True,
     }
 
-    def __init__(
-        self,
-        n_robots: int = TASK.field.robots,
-        n_packs: int = TASK.field.packs,
-        *,
-        action: str = "discrete",
-        observation: str = "normalised",
-        survival: SurvivalConfig | None = None,
-        max_cycles: int = TASK.episode_steps,
-        dock_reward: float = 1.0,
-        mate_reward: float = 1.0,
-        vision: str = "geometric",
-        camera: CameraConfig | None = None,
-        max_wheel_speed: float = DEFAULT_MAX_WHEEL_SPEED,
-        render_mode: str | None = None,
-        render_width: int = 480,
-        render_height: int = 480,
-        backend: Backend = DEFAULT_BACKEND,
-    ) -> None:
-        self.action_kind = check_choice("action", action, ACTION_KINDS)
-        self.observation_kind = check_observation(observation)
-        if survival is not None and not isinstance(survival, SurvivalConfig):
-            raise ValueError(f"survival must be a SurvivalConfig, got {type(survival).__name__}")
-        self.max_cycles = check_integer("max_cycles", max_cycles, 1, 10_000_000)
-        self.dock_reward = check_number("dock_reward", dock_reward)
-        self.mate_reward = check_number("mate_reward", mate_reward)
-        scales = RewardScales(dock_reward=self.dock_reward, mate_reward=self.mate_reward)
-        check_choice("vision", vision, PROVIDER_NAMES)
-        if camera is not None and not isinstance(camera, CameraConfig):
-            raise ValueError(f"camera must be a CameraConfig, got {type(camera).__name__}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.render_mode = render_mode
-        check_image_size(render_width, render_height)
-        self._render_size = (render_width, render_height)
-        self.max_wheel_speed = check_max_wheel_speed(max_wheel_speed)
-        backend = check_backend(backend)
-        rules = survival or SurvivalConfig()
-
-        fixed = np.random.default_rng(0)  # construction only; every reset re-draws
-        self.world = World(WorldConfig(n_robots=n_robots, n_packs=n_packs), fixed)
-        self.survival = SurvivalWorld(self.world, rules, fixed, backend=backend)
-        self.camera = camera or CameraConfig()
-        self.vision = make_provider(
-            vision, self.world, self.camera, np.random.default_rng(0), backend=backend
+    def __init__(self, config: ColonyConfig | None = None, **options: Any) -> None:
+        config = config or ColonyConfig()
+        if options:
+            config = dataclasses.replace(config, **options)
+        spec = task_spec(config.task)
+        self.task_spec = spec
+        self.dock_reward = config.dock_reward
+        self.mate_reward = config.mate_reward
+        field = Field(
+            robots=spec.field.robots if config.n_robots is None else config.n_robots,
+            packs=spec.field.packs if config.n_packs is None else config.n_packs,
         )
-        self.max_range = float(self.camera.max_range)
-        self.metadata = {**self.metadata, "render_fps": 1.0 / rules.control_dt}
-
-        n = self.world.config.n_robots
-        self.possible_agents = [agent_name(i) for i in range(n)]
+        self._build_field(config, field, task_rules(spec, config.survival))
+        self.task_episode = TaskEpisode(
+            spec,
+            self.survival,
+            functools.partial(nearest_frame, self.vision),
+            scales=RewardScales(dock_reward=self.dock_reward, mate_reward=self.mate_reward),
+            episode_steps=spec.episode_steps if config.max_cycles is None else config.max_cycles,
+            max_range=self.max_range,
+        )
+        switches = spec.switches
+        self.possible_agents = [agent_name(i) for i in range(self.task_episode.k)]
         self.agents: list[str] = []
         self._index = {agent: i for i, agent in enumerate(self.possible_agents)}
-        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, rules)
-        self.observation_names = OBSERVATION_NAMES
-        self.observation_units = OBSERVATION_UNITS
-        self.observation_bounds: ObservationBounds = limits.bounds()
-        self.observation_scale = limits.scale()
-        self.action_names = action_names(self.action_kind, SWITCHES)
+        self.action_names = action_names(self.action_kind, switches)
         # One space object per agent, returned as is (PettingZoo seeds them per agent).
         self.observation_spaces = {
-            agent: limits.space(self.observation_kind) for agent in self.possible_agents
-        }
-        self.action_spaces = {
-            agent: action_space(self.action_kind, SWITCHES, self.max_wheel_speed)
+            agent: self.observation_limits.space(self.observation_kind)
             for agent in self.possible_agents
         }
-
-        self._wheels = np.zeros((n, 2))
-        self._led = np.zeros(n, dtype=bool)
-        self._mate = np.zeros(n, dtype=bool)
-        self._recharge = np.zeros(n, dtype=bool)
-        self._switches = np.zeros(len(SWITCHES), dtype=bool)
-        self.rewards = TaskRewards(TASK.sparse, scales, self.survival, n, TASK.target)
+        self.action_spaces = {
+            agent: action_space(self.action_kind, switches, self.max_wheel_speed)
+            for agent in self.possible_agents
+        }
+        self._switches = np.zeros(len(switches), dtype=bool)
         self._rng: np.random.Generator | None = None
-        self._renderer: FieldRenderer | None = None
-        self._raw: np.ndarray | None = None  # the latest observations in physical units
-        self.steps = 0
+
+    @property
+    def max_cycles(self) -> int:
+        """Control steps after which every agent is truncated."""
+        return self.task_episode.episode_steps
+
+    @max_cycles.setter
+    def max_cycles(self, steps: int) -> None:
+        self.task_episode.episode_steps = check_integer("max_cycles", steps, 1, MAX_CYCLES)
+
+    @property
+    def steps(self) -> int:
+        """Control steps of the current episode."""
+        return self.task_episode.steps
 
     # --- pettingzoo API ---------------------------------------------------------------------------
     def observation_space(self, agent: str) -> spaces.Space[Any]:
@@ -235,19 +230,15 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, dict[str, Any]]]:
-        """New placement, newborn energies, every robot an agent again."""
+        """New placement (re-drawn until the task's start condition holds), newborn energies,
+        every learner an agent again."""
         if seed is not None or self._rng is None:
             self._rng = np.random.default_rng(seed)
         rng = self._rng
-        if self.camera.noise.enabled:
-            self.vision.rng = rng.spawn(1)[0]
-        self.survival.reset(rng)
-        self.world.set_led(False)
+        self._reseed_vision(rng)
+        self.task_episode.reset(rng)
         self.agents = list(self.possible_agents)
-        self.steps = 0
-        frame = nearest_frame(self.vision)
-        self.rewards.reset(frame)
-        states = self._states(frame)
+        states = self._observe()
         observations = {agent: states[i].copy() for agent, i in self._index.items()}
         return observations, {agent: {} for agent in self.agents}
 
@@ -276,25 +267,15 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
                 f"actions must name exactly the live agents; missing {sorted(missing)}, "
                 f"not live {sorted(unknown)}"
             )
-        self._wheels[:] = 0.0
-        self._led[:] = False
-        self._mate[:] = False
-        self._recharge[:] = False
-        switches = {"led": self._led, "mate": self._mate, "recharge": self._recharge}
+        episode = self.task_episode
+        episode.stop()
         for agent in self.agents:
             i = self._index[agent]
-            space = self.action_spaces[agent]
-            decode_action(actions[agent], space, self._wheels[i], self._switches)
-            for name, on in zip(SWITCHES, self._switches, strict=True):
-                switches[name][i] = on
-        self.rewards.begin()
-        events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
-        self.steps += 1
-        frame = nearest_frame(self.vision)
-        reward = total_reward(self.rewards.end(events, frame, TASK.reached(events)))
-        states = self._states(frame)
-        truncate = self.steps >= self.max_cycles
-        sw = self.survival
+            self._act(i, actions[agent], self.action_spaces[agent], self._switches)
+        step = episode.step()
+        states = self._observe()
+        truncate = step.steps >= self.max_cycles
+        sw, events = self.survival, step.events
         observations: dict[str, np.ndarray] = {}
         rewards: dict[str, float] = {}
         terminations: dict[str, bool] = {}
@@ -302,14 +283,13 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
         infos: dict[str, dict[str, Any]] = {}
         for agent in self.agents:
             i = self._index[agent]
-            captured = bool(events.captured[i])
             partner = int(events.mate_partner[i])
             observations[agent] = states[i].copy()
-            rewards[agent] = float(reward[i])
-            terminations[agent] = not bool(sw.alive[i])
+            rewards[agent] = float(step.reward[i])
+            terminations[agent] = step.terminated or not bool(sw.alive[i])
             truncations[agent] = truncate and not terminations[agent]
             infos[agent] = {
-                "captured": captured,
+                "captured": bool(events.captured[i]),
                 "mate_partner": agent_name(partner) if partner >= 0 else None,
                 "energy": float(sw.energy[i]),
             }
@@ -329,32 +309,20 @@ class ColonyEnv(ParallelEnv):  # type: ignore[misc]  # pettingzoo has no type hi
             raise RuntimeError("no observation yet: call reset()")
         return {agent: self._raw[self._index[agent]].copy() for agent in self.agents}
 
-    def _states(self, frame: VisionFrame) -> np.ndarray:
-        """Every robot's observation (normalised unless ``observation="raw"``); the physical
-        units are kept for :meth:`raw_observations`."""
-        self._raw = states = robot_observations(self.survival, frame, self.max_range)
-        if self.observation_kind == "normalised":
-            states = self.observation_scale.normalise(states)
-        return states
-
-    def render(self) -> np.ndarray | None:
-        """The top-down view of the field, (render_height, render_width, 3) uint8."""
-        if self.render_mode != "rgb_array":
-            return None
-        if self._renderer is None:
-            self._renderer = FieldRenderer(self.world, *self._render_size)
-        return self._renderer.top_down()
-
-    def close(self) -> None:
-        """Free the OpenGL contexts (idempotent)."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        close = getattr(self.vision, "close", None)
-        if close is not None:  # the rendered provider's GL context
-            close()
-
 
 def parallel_env(**options: Any) -> ColonyEnv:
     """The colony environment (PettingZoo's naming); ``options`` as :class:`ColonyEnv`'s."""
     return ColonyEnv(**options)
+
+
+__all__ = [
+    "MAX_CYCLES",
+    "SWITCHES",
+    "TASK",
+    "BaselinePolicy",
+    "ColonyConfig",
+    "ColonyEnv",
+    "agent_name",
+    "baseline_policy",
+    "parallel_env",
+]

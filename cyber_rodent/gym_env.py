@@ -18,8 +18,10 @@ on its lean path, with the geometric vision by default.
 
 Tasks: each environment runs the spec of its task (:mod:`cyber_rodent.tasks.spec`, the one
 definition the dm-control tasks and the behaviour episodes read too; its ``gym`` variant, which
-for Survival is one robot alone), and nothing here depends on a task's name. A task added to
-the registry is an environment at once (``CyberRodentEnv(name)``). The built-in ones:
+for Survival is one robot alone) through the episode loop every interface shares
+(:class:`~cyber_rodent.tasks.episode.TaskEpisode`: reset and start draws, step, termination,
+reward terms, observation), and nothing here depends on a task's name. A task added to the
+registry is an environment at once (``CyberRodentEnv(name)``). The built-in ones:
 
 * ``CyberRodent/Forage-v0``: 1 robot, 5 packs; the start is re-drawn until the robot sees a
   pack. Terminates with success when the robot docks onto a pack.
@@ -128,6 +130,11 @@ reward, in this order).
 Rendering: ``render_mode="rgb_array"`` returns the top-down view of the field
 (:class:`cyber_rodent.render.FieldRenderer`, off-screen MuJoCo).
 
+Options: a :class:`GymConfig` (``CyberRodentEnv(config=GymConfig(...))``), or its fields as
+keywords (``CyberRodentEnv("forage", action="continuous")``, and ``gymnasium.make``'s kwargs);
+what the PettingZoo colony shares with these environments (its options' base
+:class:`~cyber_rodent.rl_env.EnvConfig`, actions, render, close) is :mod:`cyber_rodent.rl_env`.
+
 Seeding: ``reset(seed=...)`` seeds ``env.np_random``, the one generator of the placement, the
 start re-draws and the rotation reflexes (vision noise, if configured, draws from a child of it);
 the same seed and actions give the same trajectory, bit for bit.
@@ -137,135 +144,91 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from cyber_rodent import constants as C
-from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
-from cyber_rodent.commands import COMMAND_SPEEDS, N_COMMANDS
 from cyber_rodent.observations import (
     N_OBSERVATIONS,
     OBSERVATION_KINDS,
     OBSERVATION_NAMES,
     OBSERVATION_UNITS,
     ObservationBounds,
-    ObservationLimits,
-    check_observation,
     nearest_frame,
     observation_bounds,
     robot_observations,
 )
-from cyber_rodent.render import FieldRenderer, check_image_size
-from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
-from cyber_rodent.tasks.rewards import (
-    EpisodeConfig,
-    RewardScales,
-    TaskRewards,
-    episode_rules,
-    total_reward,
+from cyber_rodent.rl_env import (
+    ACTION_KINDS,
+    DEFAULT_MAX_WHEEL_SPEED,
+    SWITCH_ON,
+    EnvConfig,
+    FieldEnv,
+    action_names,
+    action_space,
+    check_max_wheel_speed,
+    decode_action,
 )
-from cyber_rodent.tasks.spec import SURVIVAL, TaskSpec, task_names, task_spec
-from cyber_rodent.validation import check_boolean, check_choice, check_number
-from cyber_rodent.vision import (
-    PROVIDER_NAMES,
-    CameraConfig,
-    VisionFrame,
-    VisionNoise,
-    VisionProvider,
-    make_provider,
-)
-from cyber_rodent.world import World, WorldConfig
+from cyber_rodent.tasks.episode import TaskEpisode, task_rules
+from cyber_rodent.tasks.rewards import EpisodeConfig, RewardScales
+from cyber_rodent.tasks.spec import BUILT_IN, SURVIVAL, TaskSpec, task_names, task_spec
+from cyber_rodent.validation import boolean, choice
+from cyber_rodent.vision import VisionFrame, VisionNoise
 
 if TYPE_CHECKING:
     from cyber_rodent.vision.rendered import RenderedVision
 
-#: The built-in tasks' names, in the order of the registered ids (a task registered later in
-#: :mod:`cyber_rodent.tasks.spec` is offered too).
-TASK_NAMES = ("forage", "mate", "search", "survival")
-ACTION_KINDS = ("discrete", "continuous")
+#: The built-in tasks' names, in registry order (``tasks.spec.task_names()`` lists every
+#: registered task; each is an environment).
+TASK_NAMES = BUILT_IN
 REWARD_KINDS = ("sparse", "shaped")
 #: Control steps of a Survival episode (one agent lifetime of the paper's simulation).
 SURVIVAL_STEPS = SURVIVAL.episode_steps
-#: Default bound of the continuous wheel speeds, m/s.
-DEFAULT_MAX_WHEEL_SPEED = 1.0
-#: A switch entry of a continuous action, in [-1, 1], is on above this.
-SWITCH_ON = 0.0
 
 Observation = np.ndarray | dict[str, np.ndarray]
 PartnerPolicy = Callable[[Observation], Any]
 
 
-# --- actions -------------------------------------------------------------------------------------
-def action_space(kind: str, switches: tuple[str, ...], max_wheel_speed: float) -> spaces.Space[Any]:
-    """The action space of one robot: a wheel command, then on/off ``switches``.
+@dataclass(frozen=True)
+class GymConfig(EnvConfig):
+    """The options of a :class:`CyberRodentEnv`: those of :class:`~cyber_rodent.rl_env.
+    EnvConfig` and these.
 
-    Discrete: ``Discrete(N_COMMANDS)`` without switches, else ``MultiDiscrete([N_COMMANDS, 2,
-    ...])``. Continuous: ``Box`` of the two wheel speeds (m/s, ±``max_wheel_speed``), then one
-    entry in [-1, 1] per switch (on above :data:`SWITCH_ON`).
-    """
-    if kind == "discrete":
-        if not switches:
-            return spaces.Discrete(N_COMMANDS)
-        return spaces.MultiDiscrete([N_COMMANDS, *(2,) * len(switches)])
-    low = np.array([-max_wheel_speed] * 2 + [-1.0] * len(switches), dtype=np.float32)
-    high = np.array([max_wheel_speed] * 2 + [1.0] * len(switches), dtype=np.float32)
-    return spaces.Box(low, high, dtype=np.float32)
-
-
-def action_names(kind: str, switches: tuple[str, ...]) -> tuple[str, ...]:
-    """Names of the entries of an action of :func:`action_space`."""
-    wheels = ("command",) if kind == "discrete" else ("left_wheel", "right_wheel")
-    return (*wheels, *switches)
-
-
-def decode_action(
-    action: Any, space: spaces.Space[Any], wheels: np.ndarray, switches: np.ndarray
-) -> None:
-    """Write an action of ``space`` (:func:`action_space`) as wheel speeds and switch states.
-
-    Args:
-        action: the action.
-        space: its space.
-        wheels: (2,) out: left and right wheel rim speeds, m/s.
-        switches: (n_switches,) bool out.
+    Attributes:
+        task: a registered task (:func:`~cyber_rodent.tasks.spec.task_names`; the spec's
+            ``gym`` variant runs).
+        reward: ``"sparse"`` (the task's success) or ``"shaped"`` (the behaviours' training
+            reward; not for Survival).
+        pixels: add robot 0's omni strip to the observation (a ``Dict`` observation).
+        masks: also add the strip's colour-segmentation masks (needs ``pixels``).
+        episode: length, start draws and shaped-reward settings (None: ``EpisodeConfig()`` with
+            the task's episode length, ``max_steps=400`` for Survival).
+        partner_policy: a task of two learners only (Mate): robot 1's policy, from its
+            observation to an action of the environment's action space (None: it stands
+            still).
 
     Raises:
-        ValueError: the action is not in the space (the message says why).
+        ValueError: one line naming the first invalid field and what it allows.
     """
-    if isinstance(space, spaces.Box):
-        value = np.asarray(action, dtype=np.float32)
-        if value.shape != space.shape:
-            raise ValueError(f"action must have shape {space.shape}, got {value.shape}")
-        if not np.isfinite(value).all():
-            raise ValueError("action must be finite (got NaN or inf)")
-        if (value < space.low).any() or (value > space.high).any():
+
+    task: str = choice("forage", task_names)
+    reward: str = choice("sparse", REWARD_KINDS)
+    pixels: bool = boolean(False)
+    masks: bool = boolean(False)
+    episode: EpisodeConfig | None = None
+    partner_policy: PartnerPolicy | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.masks and not self.pixels:
+            raise ValueError("masks=True needs pixels=True (the masks segment the pixels)")
+        if self.episode is not None and not isinstance(self.episode, EpisodeConfig):
             raise ValueError(
-                f"action must lie in [{space.low.tolist()}, {space.high.tolist()}], "
-                f"got {value.tolist()}"
+                f"episode must be an EpisodeConfig, got {type(self.episode).__name__}"
             )
-        wheels[:] = value[:2]
-        np.greater(value[2:], SWITCH_ON, out=switches)
-        return
-    value = np.asarray(action)
-    nvec = space.nvec if isinstance(space, spaces.MultiDiscrete) else np.array([N_COMMANDS])
-    flat = value.reshape(-1)
-    if value.dtype.kind not in "iu" or flat.shape != nvec.shape:
-        raise ValueError(
-            f"action must be {'an integer' if flat.size == 1 else 'integers'} of {space}, "
-            f"got {action!r}"
-        )
-    if (flat < 0).any() or (flat >= nvec).any():
-        raise ValueError(f"action must lie in {space}, got {action!r}")
-    wheels[:] = COMMAND_SPEEDS[int(flat[0])]
-    switches[:] = flat[1:] != 0
-
-
-def check_max_wheel_speed(value: object) -> float:
-    """A continuous action's wheel-speed bound, m/s, in (0, ``TOP_SPEED``]."""
-    return check_number("max_wheel_speed", value, 0.0, C.TOP_SPEED, low_open=True)
 
 
 def _listed(names: list[str]) -> str:
@@ -273,37 +236,30 @@ def _listed(names: list[str]) -> str:
     return " and ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
 
 
-class CyberRodentEnv(gym.Env[Observation, Any]):
+class CyberRodentEnv(FieldEnv, gym.Env[Observation, Any]):
     """One Cyber Rodent task as a Gymnasium environment (see the module docstring).
 
     Args:
         task: ``"forage"``, ``"mate"``, ``"search"``, ``"survival"`` or another registered
-            task (:mod:`cyber_rodent.tasks.spec`; the spec's ``gym`` variant runs).
-        action: ``"discrete"`` (the command table) or ``"continuous"`` (wheel speeds, m/s).
-        reward: ``"sparse"`` (the task's success) or ``"shaped"`` (the behaviours' training
-            reward; not for Survival).
-        observation: ``"normalised"`` (the state in [0, 1], bearings in [−1, 1]) or ``"raw"``
-            (physical units); :mod:`cyber_rodent.observations`.
-        pixels: add robot 0's omni strip to the observation (a ``Dict`` observation).
-        masks: also add the strip's colour-segmentation masks (needs ``pixels``).
-        vision: provider of the state's nearest LED, face and pack, ``"geometric"`` (as in
-            training) or ``"rendered"``.
-        camera: the omni camera (vision and pixels); default :class:`CameraConfig`.
-        survival: the survival rules (default: the paper's). Forage, Mate and Search replace
-            the energy fields by endless energy, as the behaviour episodes do.
-        episode: length, start draws and shaped-reward settings; default ``EpisodeConfig()``
-            with the task's episode length (``max_steps=400`` for Survival).
-        partner_policy: Mate only (a task with two learners): robot 1's policy, from its
-            observation to an action of this environment's action space (None: it stands
-            still).
-        max_wheel_speed: bound of the continuous wheel speeds, m/s, in (0, 1.3].
-        render_mode: None or ``"rgb_array"`` (top-down view).
-        render_width, render_height: size of a rendered image, px.
-        backend: ``"numba"`` or ``"numpy"`` kernels (the same trajectories).
+            task (:mod:`cyber_rodent.tasks.spec`; the spec's ``gym`` variant runs); overrides
+            ``config.task``.
+        config: the options (:class:`GymConfig`; default: its defaults).
+        **options: any field of :class:`GymConfig` by name, over ``config``: ``action``
+            (``"discrete"`` or ``"continuous"``), ``reward`` (``"sparse"`` or ``"shaped"``),
+            ``observation`` (``"normalised"`` or ``"raw"``), ``pixels``, ``masks``, ``vision``
+            (``"geometric"``, as in training, or ``"rendered"``), ``camera`` (vision and
+            pixels), ``survival`` (the rules; Forage, Mate and Search replace the energy fields
+            by endless energy, as the behaviour episodes do), ``episode``, ``partner_policy``,
+            ``max_wheel_speed``, ``render_mode``, ``render_width``, ``render_height``,
+            ``backend``.
 
     Attributes:
+        config: the options.
         task_spec: the task's spec (:class:`~cyber_rodent.tasks.spec.TaskSpec`), its ``gym``
             variant.
+        task_episode: the task's episode loop (:class:`~cyber_rodent.tasks.episode.
+            TaskEpisode`).
+        episode: the episode settings (:class:`~cyber_rodent.tasks.rewards.EpisodeConfig`).
         observation_kind: ``"normalised"`` or ``"raw"``.
         observation_names: the names of the state vector's entries.
         observation_units: the units of their raw values.
@@ -322,53 +278,27 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 5}
 
     def __init__(
-        self,
-        task: str = "forage",
-        *,
-        action: str = "discrete",
-        reward: str = "sparse",
-        observation: str = "normalised",
-        pixels: bool = False,
-        masks: bool = False,
-        vision: str = "geometric",
-        camera: CameraConfig | None = None,
-        survival: SurvivalConfig | None = None,
-        episode: EpisodeConfig | None = None,
-        partner_policy: PartnerPolicy | None = None,
-        max_wheel_speed: float = DEFAULT_MAX_WHEEL_SPEED,
-        render_mode: str | None = None,
-        render_width: int = 480,
-        render_height: int = 480,
-        backend: Backend = DEFAULT_BACKEND,
+        self, task: str | None = None, config: GymConfig | None = None, **options: Any
     ) -> None:
-        check_choice("task", task, task_names())
-        spec = task_spec(task).gym
+        if task is not None:
+            options["task"] = task
+        config = config or GymConfig()
+        if options:
+            config = dataclasses.replace(config, **options)
+        spec = task_spec(config.task).gym
         self.task_spec: TaskSpec = spec
         self.task = spec.name
-        self.action_kind = check_choice("action", action, ACTION_KINDS)
-        self.reward_kind = check_choice("reward", reward, REWARD_KINDS)
-        self.observation_kind = check_observation(observation)
+        self.reward_kind = config.reward
         registered = [task_spec(name) for name in task_names()]
-        if not spec.rewards(reward):
+        if not spec.rewards(config.reward):
             offering = [other.title for other in registered if other.shaped]
             raise ValueError(
                 f"reward='shaped' is the behaviours' training reward of "
                 f"{_listed(offering)}; {spec.title} has none (use reward='sparse')"
             )
-        check_boolean("pixels", pixels)
-        check_boolean("masks", masks)
-        if masks and not pixels:
-            raise ValueError("masks=True needs pixels=True (the masks segment the pixels)")
-        check_choice("vision", vision, PROVIDER_NAMES)
-        if camera is not None and not isinstance(camera, CameraConfig):
-            raise ValueError(f"camera must be a CameraConfig, got {type(camera).__name__}")
-        if survival is not None and not isinstance(survival, SurvivalConfig):
-            raise ValueError(f"survival must be a SurvivalConfig, got {type(survival).__name__}")
-        if episode is not None and not isinstance(episode, EpisodeConfig):
-            raise ValueError(f"episode must be an EpisodeConfig, got {type(episode).__name__}")
-        n_robots, n_packs = spec.field.robots, spec.field.packs
         # Robots that act: robot 0, and robot 1 (the partner) in a task of two learners.
-        self.n_learners = spec.n_learners(n_robots)
+        self.n_learners = spec.n_learners(spec.field.robots)
+        partner_policy = config.partner_policy
         if partner_policy is not None and (self.n_learners < 2 or not callable(partner_policy)):
             partnered = [
                 other.title
@@ -379,82 +309,57 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
                 f"partner_policy must be a callable, and only {_listed(partnered)} "
                 f"{'has' if len(partnered) == 1 else 'have'} a partner"
             )
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.render_mode = render_mode
-        check_image_size(render_width, render_height)
-        self._render_size = (render_width, render_height)
-        self.max_wheel_speed = check_max_wheel_speed(max_wheel_speed)
-        backend = check_backend(backend)
-        if episode is None:
-            episode = EpisodeConfig(max_steps=spec.episode_steps)
+        episode = config.episode or EpisodeConfig(max_steps=spec.episode_steps)
         self.episode = episode
         self.partner_policy = partner_policy
-        rules = episode_rules(survival) if spec.endless_energy else (survival or SurvivalConfig())
-
-        fixed = np.random.default_rng(0)  # construction only; every reset re-draws
-        self.world = World(WorldConfig(n_robots=n_robots, n_packs=n_packs), fixed)
-        self.survival = SurvivalWorld(self.world, rules, fixed, backend=backend)
-        self.camera = camera or CameraConfig()
-        self.vision: VisionProvider = make_provider(
-            vision, self.world, self.camera, np.random.default_rng(0), backend=backend
-        )
-        self.max_range = float(self.camera.max_range)
+        rules = task_rules(spec, config.survival)
+        self._build_field(config, spec.field, rules)
         self._pixels: RenderedVision | None = None
         self._own_pixels = False
-        if pixels:
-            self._pixels, self._own_pixels = self._pixel_source(backend)
-        self._masks = masks
-        self.metadata = {**self.metadata, "render_fps": 1.0 / rules.control_dt}
-        self.dt = rules.control_dt
+        if config.pixels:
+            self._pixels, self._own_pixels = self._pixel_source()
+        self._masks = config.masks
 
-        # Commands of every robot: the spec's switches; the learners' actions set the wheels
-        # and the switches the spec leaves to them.
-        switch_values = spec.switch_values(n_robots)
-        self._wheels = np.zeros((n_robots, 2))
-        self._led = switch_values["led"]
-        self._mate = switch_values["mate"]
-        self._recharge = switch_values["recharge"]
+        # Robot 0's reward, term by term; the episode loop of the task.
+        shaped = config.reward == "shaped"
+        self.task_episode = TaskEpisode(
+            spec,
+            self.survival,
+            self._nearest,
+            reward=config.reward,
+            scales=RewardScales.from_episode(episode) if shaped else RewardScales(),
+            rewarded=1,
+            episode_steps=episode.max_steps,
+            max_start_draws=episode.max_start_draws,
+            collisions=True,
+            track_cells=spec.measure == "coverage_cells",
+            max_range=self.max_range,
+        )
+        self.rewards = self.task_episode.rewards
+        self._wheels = self.task_episode.wheels
         switches = spec.switches
-        self._switch_targets = tuple(switch_values[name] for name in switches)
         self._switches = np.zeros(len(switches), dtype=bool)
         self.action_space = action_space(self.action_kind, switches, self.max_wheel_speed)
         self.action_names = action_names(self.action_kind, switches)
-
-        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, rules)
-        self.observation_names = OBSERVATION_NAMES
-        self.observation_units = OBSERVATION_UNITS
-        self.observation_bounds: ObservationBounds = limits.bounds()
-        self.observation_scale = limits.scale()
-        state_space = limits.space(self.observation_kind)
-        if pixels:
+        state_space = self.observation_limits.space(self.observation_kind)
+        if config.pixels:
             shape = (self.camera.height, self.camera.strip_width, 3)
             image = {"pixels": spaces.Box(0, 255, shape, dtype=np.uint8)}
-            if masks:
+            if config.masks:
                 image["masks"] = spaces.Box(0, 255, shape, dtype=np.uint8)
             self.observation_space: spaces.Space[Any] = spaces.Dict(
                 {"state": state_space, **image}
             )
         else:
             self.observation_space = state_space
-
-        # Robot 0's reward, term by term.
-        scales = RewardScales.from_episode(episode) if reward == "shaped" else RewardScales()
-        self.rewards = TaskRewards(
-            spec.rewards(reward),
-            scales,
-            self.survival,
-            1,
-            spec.target,
-            track_cells=spec.measure == "coverage_cells",
-        )
-        self._collided = np.zeros(n_robots, dtype=bool)
-        self._frame = VisionFrame.empty(n_robots)
+        n_robots = spec.field.robots
         self._states = np.zeros((n_robots, N_OBSERVATIONS), dtype=np.float32)
-        self._captures = 0
-        self.steps = 0
-        self._renderer: FieldRenderer | None = None
         self._started = False
+
+    @property
+    def steps(self) -> int:
+        """Control steps of the current episode."""
+        return self.task_episode.steps
 
     # --- gymnasium API ---------------------------------------------------------------------------
     def reset(
@@ -468,26 +373,9 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         """
         super().reset(seed=seed)
         rng = self.np_random
-        if self.camera.noise.enabled:
-            self.vision.rng = rng.spawn(1)[0]
-        start = self.task_spec.start
-        for _ in range(self.episode.max_start_draws):
-            self.survival.reset(rng)
-            self.world.set_led(self._led)
-            frame = nearest_frame(self.vision)
-            if start is None or start.holds(frame):
-                break
-        else:
-            raise RuntimeError(
-                f"{self.task}: no start placement met the start condition in "
-                f"{self.episode.max_start_draws} draws"
-            )
-        self._frame = frame
-        self._wheels[:] = 0.0  # a robot no action moves stands still
-        self.steps = 0
-        self._captures = 0
+        self._reseed_vision(rng)
+        self.task_episode.reset(rng)
         self._started = True
-        self.rewards.reset(frame)
         self._look()
         info = {"steps": 0}
         return self._observation(0), info
@@ -496,76 +384,38 @@ class CyberRodentEnv(gym.Env[Observation, Any]):
         """One control step with robot 0's ``action`` (and the partner's, in Mate)."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        self._act(0, action)
+        self._act(0, action, self.action_space, self._switches)
         if self.partner_policy is not None:
-            self._act(1, self.partner_policy(self._observation(1)))
-        self.rewards.begin()
-        events = self.survival.step(self._wheels, self._led, self._mate, self._recharge)
-        self.steps += 1
-        self._frame = nearest_frame(self.vision)
-        self.survival.collisions(out=self._collided)
-        spec = self.task_spec
-        success = spec.reached(events)
-        terminated = success or spec.dead(self.survival.alive, self.n_learners)
-        if spec.release_docking:  # recharging is not the task's job
-            for robot in range(self.n_learners):
-                self.survival.end_recharge(robot, reflex=False)
-        self._captures += bool(events.captured[0])
-        terms = self.rewards.end(events, self._frame, success, self._collided)
-        reward = float(total_reward(terms)[0])
-        truncated = not terminated and self.steps >= self.episode.max_steps
+            partner = self.partner_policy(self._observation(1))
+            self._act(1, partner, self.action_space, self._switches)
+        step = self.task_episode.step()
         self._look()
-        info: dict[str, Any] = {"steps": self.steps, "collided": bool(self._collided[0])}
-        if spec.measure == "is_success":
-            info["is_success"] = success
-        elif spec.measure == "coverage_cells":
-            info["coverage_cells"] = self.rewards.cells_visited[0]
-        else:
-            info["captures"] = self._captures
-        info["reward_terms"] = {name: float(value[0]) for name, value in terms.items()}
-        return self._observation(0), reward, terminated, truncated, info
-
-    def render(self) -> np.ndarray | None:
-        """The top-down view of the field, (render_height, render_width, 3) uint8."""
-        if self.render_mode != "rgb_array":
-            return None
-        if self._renderer is None:
-            self._renderer = FieldRenderer(self.world, *self._render_size)
-        return self._renderer.top_down()
-
-    def close(self) -> None:
-        """Free the OpenGL contexts (idempotent)."""
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        if self._pixels is not None and self._own_pixels:
-            self._pixels.close()
-        self._pixels = None
-        close = getattr(self.vision, "close", None)
-        if close is not None:  # the rendered provider's GL context
-            close()
+        reward = float(step.reward[0])
+        return self._observation(0), reward, step.terminated, step.truncated, step.info()
 
     # --- internals -------------------------------------------------------------------------------
-    def _pixel_source(self, backend: Backend) -> tuple[RenderedVision, bool]:
+    def _nearest(self) -> VisionFrame:
+        """What the robots see, as the episode loop looks (the module's :func:`nearest_frame`,
+        looked up at each call: ``benchmarks/rl_throughput.py --before-after`` swaps it)."""
+        return nearest_frame(self.vision)
+
+    def _pixel_source(self) -> tuple[RenderedVision, bool]:
         """The renderer of the omni strips: the vision itself if it renders, else its own one."""
         from cyber_rodent.vision.rendered import RenderedVision  # needs OpenGL: import lazily
 
         if isinstance(self.vision, RenderedVision):
             return self.vision, False
         camera = dataclasses.replace(self.camera, noise=VisionNoise())  # images only
-        return RenderedVision(self.world, camera, backend=backend), True
+        return RenderedVision(self.world, camera, backend=self.config.backend), True
 
-    def _act(self, robot: int, action: Any) -> None:
-        """Robot ``robot``'s action: its wheels, and the switches its action sets."""
-        decode_action(action, self.action_space, self._wheels[robot], self._switches)
-        for target, on in zip(self._switch_targets, self._switches, strict=True):
-            target[robot] = on
+    def _release(self) -> None:
+        if self._pixels is not None and self._own_pixels:
+            self._pixels.close()
+        self._pixels = None
 
     def _look(self) -> None:
         """Every robot's state vector, and the strips if the observation has pixels."""
-        self._states = robot_observations(self.survival, self._frame, self.max_range)
-        if self.observation_kind == "normalised":
-            self._states = self.observation_scale.normalise(self._states)
+        self._states = self._observe()
         if self._pixels is not None and self._pixels is not self.vision:
             self._pixels.observe()
 
@@ -594,6 +444,7 @@ __all__ = [
     "SWITCH_ON",
     "TASK_NAMES",
     "CyberRodentEnv",
+    "GymConfig",
     "Observation",
     "ObservationBounds",
     "PartnerPolicy",

@@ -1,12 +1,13 @@
-"""What one robot of the Gymnasium and PettingZoo environments observes, defined once.
+"""What one robot observes in every task interface, defined once.
 
 The observation is a flat vector of 21 named entries (:data:`OBSERVATIONS`, in vector order):
 8 IR range readings, the bearing, distance and visibility of the nearest green LED, red face and
 blue battery pack, the robot's energy, its LED, whether it is docked, and the control steps
 recharged in the current docking. This table is the one place that says, for each entry, its
 name, its physical unit, its bounds and how it is normalised; the environments
-(:mod:`cyber_rodent.gym_env`, :mod:`cyber_rodent.colony_env`) build their observation spaces
-and their observations from it, for every task alike.
+(:mod:`cyber_rodent.gym_env`, :mod:`cyber_rodent.colony_env`) and the dm-control tasks
+(:mod:`cyber_rodent.tasks.base`) build their observation spaces and their observations from it
+(through :meth:`cyber_rodent.tasks.episode.TaskEpisode.observations`), for every task alike.
 
 Two kinds of observation (:data:`OBSERVATION_KINDS`, the environments' ``observation=``):
 
@@ -45,9 +46,11 @@ entries                unit           raw bounds       normalised
 =====================  =============  ===============  ============================================
 
 ``max_range`` is the camera's range (the field's diagonal, 3.25 m, by default); an unseen
-target reads bearing 0, distance ``max_range``, visible 0 in raw units, as in the dm-control
-tasks (:mod:`cyber_rodent.tasks.base`), so 0, 1, 0 normalised. The normalised distance is the
-behaviours' distance input (``behaviours.inputs``), the normalised bearing ``2 x − 1`` of their
+target reads bearing 0, distance ``max_range``, visible 0 in raw units, so 0, 1, 0 normalised.
+The dm-control tasks observe this very table in float64, its entries grouped by name
+(:data:`OBSERVATION_GROUPS`: ``range``, ``nearest_led`` …), and build their specs from the same
+bounds (:meth:`ObservationLimits.intervals`). The normalised distance is the behaviours'
+distance input (``behaviours.inputs``), the normalised bearing ``2 x − 1`` of their
 bearing input ``x``, and the proximities are the readings their Search input is taken from.
 
 The environments read what the robots see through :func:`nearest_frame`: each robot's nearest
@@ -63,7 +66,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -127,6 +130,18 @@ OBSERVATIONS: tuple[ObservationEntry, ...] = (
 OBSERVATION_NAMES: tuple[str, ...] = tuple(entry.name for entry in OBSERVATIONS)
 OBSERVATION_UNITS: tuple[str, ...] = tuple(entry.unit for entry in OBSERVATIONS)
 N_OBSERVATIONS = len(OBSERVATIONS)
+_FIRST_OWN = C.N_RANGE + 3 * len(_TARGETS)  # the first of the robot's own entries (energy)
+#: The same entries grouped as the dm-control tasks name them (:mod:`cyber_rodent.tasks.base`):
+#: the ranges, each target's bearing, distance and visibility, then the robot's own entries.
+#: A group is its name and its columns of the vector: a slice, or one column (a scalar).
+OBSERVATION_GROUPS: tuple[tuple[str, slice | int], ...] = (
+    ("range", slice(0, C.N_RANGE)),
+    *(
+        (f"nearest_{target}", slice(C.N_RANGE + 3 * k, C.N_RANGE + 3 * k + 3))
+        for k, (target, _) in enumerate(_TARGETS)
+    ),
+    *((OBSERVATIONS[i].name, i) for i in range(_FIRST_OWN, N_OBSERVATIONS)),
+)
 
 
 class ObservationBounds(NamedTuple):
@@ -199,12 +214,17 @@ class ObservationLimits:
             float(survival.max_recharge_steps),
         )
 
-    def bounds(self) -> ObservationBounds:
-        """The raw observation's bounds, entry by entry."""
+    def intervals(self) -> ObservationBounds:
+        """The raw observation's bounds, entry by entry, float64 (the dm-control specs')."""
         low = np.zeros(N_OBSERVATIONS)
         high = np.ones(N_OBSERVATIONS)
         for i, entry in enumerate(OBSERVATIONS):
             low[i], high[i] = self._interval(i, entry)
+        return ObservationBounds(low, high)
+
+    def bounds(self) -> ObservationBounds:
+        """The raw observation's bounds, entry by entry (float32, the spaces')."""
+        low, high = self.intervals()
         return ObservationBounds(low.astype(np.float32), high.astype(np.float32))
 
     def scale(self) -> ObservationScale:
@@ -267,15 +287,19 @@ def observation_bounds(
 
 
 def robot_observations(
-    survival: SurvivalWorld, frame: VisionFrame, max_range: float
+    survival: SurvivalWorld,
+    frame: VisionFrame,
+    max_range: float,
+    dtype: type[np.floating[Any]] = np.float32,
 ) -> np.ndarray:
-    """(n_robots, :data:`N_OBSERVATIONS`) float32: every robot's raw observation, a fresh array.
+    """(n_robots, :data:`N_OBSERVATIONS`): every robot's raw observation, a fresh array.
 
-    An unseen target has bearing 0, distance ``max_range`` and visible 0, as in the dm-control
-    tasks (:mod:`cyber_rodent.tasks.base`).
+    Every value is computed in float64 and stored as ``dtype``: float32 for the Gymnasium and
+    PettingZoo environments, float64 for the dm-control tasks (:data:`OBSERVATION_GROUPS`). An
+    unseen target has bearing 0, distance ``max_range`` and visible 0.
     """
     world = survival.world
-    obs = np.empty((world.config.n_robots, N_OBSERVATIONS), dtype=np.float32)
+    obs = np.empty((world.config.n_robots, N_OBSERVATIONS), dtype=dtype)
     obs[:, : C.N_RANGE] = world.range_readings()
     for k, (_, cls) in enumerate(_TARGETS):
         col = C.N_RANGE + 3 * k
@@ -285,7 +309,7 @@ def robot_observations(
             visible, np.minimum(frame.distance[:, cls], max_range), max_range
         )
         obs[:, col + 2] = visible
-    col = C.N_RANGE + 3 * len(_TARGETS)
+    col = _FIRST_OWN
     obs[:, col] = survival.energy
     obs[:, col + 1] = world.led_on
     obs[:, col + 2] = survival.docked
@@ -320,6 +344,7 @@ __all__ = [
     "FLAG",
     "N_OBSERVATIONS",
     "OBSERVATIONS",
+    "OBSERVATION_GROUPS",
     "OBSERVATION_KINDS",
     "OBSERVATION_NAMES",
     "OBSERVATION_UNITS",

@@ -1,10 +1,12 @@
 """The Cyber Rodent tasks in dm-control: one task class, driven by the task's spec.
 
 A task owns one :class:`~cyber_rodent.survival.SurvivalWorld` (the same object the evolution
-runner steps on its lean path) and drives it from dm-control: :meth:`before_step` applies the
-action (``SurvivalWorld.begin_step``), dm-control advances the physics by the world's substeps
-(``mj_step``, no legacy split step, so the trajectory is the lean path's), and
-:meth:`after_step` runs the mechanics (``SurvivalWorld.end_step``) and the vision provider once.
+runner steps on its lean path) and its :class:`~cyber_rodent.tasks.episode.TaskEpisode`, the
+episode loop every interface shares, and drives them from dm-control: :meth:`before_step` turns
+the action into the episode's commands (``TaskEpisode.begin``), dm-control advances the physics
+by the world's substeps (``mj_step``, no legacy split step, so the trajectory is the lean
+path's), and :meth:`after_step` ends the step (``TaskEpisode.end``: the mechanics, the vision
+provider once, success, termination, reward).
 
 What makes a task that task (field, start condition, termination, rewards, the robots'
 switches, episode length) is its :class:`~cyber_rodent.tasks.spec.TaskSpec`;
@@ -17,7 +19,9 @@ Every observation and action array has a leading axis of length ``k``, and the r
 two, Survival all of them. One shape rule for all tasks lets a learner treat "one robot" and
 "two robots running the same behaviour" alike.
 
-Observations (per controlled robot; raw physical units, bounds in the specs):
+Observations (per controlled robot; raw physical units, bounds in the specs): the entries of
+the one observation table, :mod:`cyber_rodent.observations`, in float64 and grouped by name
+(:data:`~cyber_rodent.observations.OBSERVATION_GROUPS`):
 
 ==================  =========  ===============================================================
 name                shape      meaning
@@ -53,17 +57,17 @@ placement).
 Episode: ``episode_steps`` control steps (the spec's), cut with discount 1; it ends with discount
 0 at the task's success (robot 0's goal) or at a death (:meth:`TaskSpec.dead`: any controlled
 robot's, or Survival's every robot's). The dm-control tasks run the survival rules they are
-given (default: the paper's, energy included), whatever the spec's ``endless_energy``, and
-leave a docking to the recharge decision (a Search robot that docks stops recharging on the
-next step, with the reflex).
+given (default: the paper's, energy included), whatever the spec's ``endless_energy``. A task
+whose spec says ``release_docking`` (Search) releases a learner's docking at the end of the
+step in which it docked, without the reflex, as the Gymnasium environments and the behaviours'
+episodes do (:mod:`cyber_rodent.tasks.episode`; before the episode loop was shared, a Search
+robot that docked here stopped recharging on the next step, with the reflex).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections import OrderedDict
-from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
@@ -72,24 +76,15 @@ from dm_control.rl import control
 from dm_env import specs
 
 from cyber_rodent import constants as C
+from cyber_rodent.observations import OBSERVATION_GROUPS, ObservationLimits
 from cyber_rodent.survival import StepEvents, SurvivalConfig, SurvivalWorld
-from cyber_rodent.tasks.rewards import TaskRewards, total_reward
+from cyber_rodent.tasks.episode import TaskEpisode
 from cyber_rodent.tasks.spec import TaskSpec
-from cyber_rodent.vision import BATTERY, FACE, LED, CameraConfig, VisionFrame, make_provider
+from cyber_rodent.vision import CameraConfig, VisionFrame, make_provider
 from cyber_rodent.world import World, WorldConfig
 
 #: Observation names in a stable order (also the order of a flattened observation).
-OBSERVATION_NAMES = (
-    "range",
-    "nearest_led",
-    "nearest_face",
-    "nearest_battery",
-    "energy",
-    "led_on",
-    "docked",
-    "recharge_steps",
-)
-_TARGET_OBSERVATIONS = (("nearest_led", LED), ("nearest_face", FACE), ("nearest_battery", BATTERY))
+OBSERVATION_NAMES = tuple(name for name, _ in OBSERVATION_GROUPS)
 #: Threshold of the [0, 1] switch actions (``led``, ``mate``, ``recharge``): on above it.
 SWITCH_ON = 0.5
 #: Options of every task (``tasks.load(name, **options)``).
@@ -170,25 +165,17 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         if survival is not None and not isinstance(survival, SurvivalConfig):
             raise ValueError(f"survival must be a SurvivalConfig, got {type(survival).__name__}")
         self.start_in_view = spec.start is not None and bool(options.pop("start_in_view", True))
-        kind = spec.control_reward
         self.scales = dataclasses.replace(spec.control_scales, **options)
         self.episode_steps = int(episode_steps)
         self._rng = rng
         world_cfg = WorldConfig(n_robots=n_robots, n_packs=n_packs)
         if timestep is not None:
             world_cfg = WorldConfig(n_robots=n_robots, n_packs=n_packs, timestep=timestep)
-        k = spec.n_learners(n_robots)
-        if k > n_robots:
-            raise ValueError(
-                f"n_robots must be >= {k} for the {spec.name} task (it controls {k}), "
-                f"got {n_robots}"
-            )
         start = spec.start
         if self.start_in_view and start is not None and n_packs < start.min_packs:
             raise ValueError(
                 f"n_packs must be >= {start.min_packs} for {spec.title} with start_in_view=True"
             )
-        self.k = k
         world = World(world_cfg, rng)
         self.survival = SurvivalWorld(world, survival, rng)
         self.world = world
@@ -196,22 +183,27 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         self.vision = make_provider(vision, world, camera, rng.spawn(1)[0])
         self.camera = self.vision.config
         self.max_range = float(self.camera.max_range)
-        self.frame: VisionFrame | None = None
-        n = world.config.n_robots
-        # Commands of all robots, rebuilt from the action every step (preallocated); the
-        # spec's switches where no action sets them.
-        fixed = spec.switch_values(n)
-        self._wheels = np.zeros((n, 2))
-        self._led = np.zeros(n, dtype=bool)
-        self._mate = fixed["mate"]
-        self._recharge = fixed["recharge"]
-        self._start_led = fixed["led"]
-        self.rewards = TaskRewards(spec.rewards(kind), self.scales, self.survival, k, spec.target)
-        self._reward = np.zeros(k)
+        # The action sets every learner's LED, and the switches the spec leaves open.
+        switches = ("led", *(name for name in spec.switches if name != "led"))
+        self.episode = TaskEpisode(
+            spec,
+            self.survival,
+            self.vision.observe,
+            reward=spec.control_reward,
+            scales=self.scales,
+            switches=switches,
+            episode_steps=self.episode_steps,
+            start=self.start_in_view,
+            max_start_draws=START_ATTEMPTS,
+            max_range=self.max_range,
+        )
+        self.k = self.episode.k
+        self.rewards = self.episode.rewards
+        self._reward = np.zeros(self.k)
         self.success = False
+        self._terminated = False
         self.last_events: StepEvents = self.survival.events
         self._action_spec = self._make_action_spec()
-        self._action_switches = tuple(self._action_spec)[1:]  # led, then the spec's switches
         self._observation_spec = self._make_observation_spec()
 
     @property
@@ -238,22 +230,16 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         return spec
 
     def _make_observation_spec(self) -> OrderedDict[str, specs.BoundedArray]:
+        """The bounds of the observation table's entries, grouped as the observation."""
         k = self.k
-        cfg = self.survival.config
+        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, self.survival.config)
+        low, high = limits.intervals()
         spec = OrderedDict()
-        spec["range"] = specs.BoundedArray(
-            (k, C.N_RANGE), np.float64, 0.0, self.world.range_max[:k].copy(), name="range"
-        )
-        lo = np.tile([-math.pi, 0.0, 0.0], (k, 1))
-        hi = np.tile([math.pi, self.max_range, 1.0], (k, 1))
-        for key, _ in _TARGET_OBSERVATIONS:
-            spec[key] = specs.BoundedArray((k, 3), np.float64, lo, hi, name=key)
-        spec["energy"] = specs.BoundedArray((k,), np.float64, 0.0, cfg.max_energy, name="energy")
-        spec["led_on"] = specs.BoundedArray((k,), np.float64, 0.0, 1.0, name="led_on")
-        spec["docked"] = specs.BoundedArray((k,), np.float64, 0.0, 1.0, name="docked")
-        spec["recharge_steps"] = specs.BoundedArray(
-            (k,), np.float64, 0.0, float(cfg.max_recharge_steps), name="recharge_steps"
-        )
+        for name, columns in OBSERVATION_GROUPS:
+            shape = (k,) if isinstance(columns, int) else (k, columns.stop - columns.start)
+            spec[name] = specs.BoundedArray(
+                shape, np.float64, _bound(low[columns], k), _bound(high[columns], k), name=name
+            )
         return spec
 
     def action_spec(self, physics: Physics | None = None) -> OrderedDict[str, specs.BoundedArray]:
@@ -269,41 +255,29 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         return specs.Array((self.k,), np.float64, name="reward")
 
     # --- episode -----------------------------------------------------------------------------
+    @property
+    def frame(self) -> VisionFrame | None:
+        """What every robot saw at the end of the last step (or at the episode's start)."""
+        return self.episode.frame
+
     def initialize_episode(self, physics: Physics) -> None:
         """New placement and newborn energies, re-drawn until the start condition holds."""
-        self.survival.reset(self._rng)
-        self.world.set_led(self._start_led)
-        start = self.task_spec.start
-        if self.start_in_view and start is not None:
-            self._redraw_until(start.holds, start.description)
-        self.frame = self.vision.observe()
-        self.rewards.reset(self.frame)
-        self.survival.events.clear()
-
-    def _redraw_until(
-        self, condition: Callable[[VisionFrame], object], what: str, attempts: int = START_ATTEMPTS
-    ) -> None:
-        """Re-draw the placement until ``condition(frame)`` holds (a start condition)."""
-        for _ in range(attempts):
-            if condition(self.vision.observe()):
-                return
-            self.survival.reset(self._rng)
-            self.world.set_led(self._start_led)
-        raise RuntimeError(f"no placement with {what} in {attempts} draws")
+        self.episode.reset(self._rng)
+        self.success = self._terminated = False
 
     def before_step(self, action: Any, physics: Physics | None = None) -> None:
-        """Validate the action and hand the commands to the world (``begin_step``)."""
+        """Validate the action and hand the commands to the world (``TaskEpisode.begin``)."""
         self._read_action(action)
-        self.survival.begin_step(self._wheels, self._led, self._mate, self._recharge)
-        self.rewards.begin()
+        self.episode.begin()
 
     def after_step(self, physics: Physics | None = None) -> None:
-        """Energy, docking, mating (``end_step``), then what every robot sees, and the reward."""
-        self.last_events = self.survival.end_step()
-        self.frame = self.vision.observe()
-        self.success = self.task_spec.reached(self.last_events)
-        terms = self.rewards.end(self.last_events, self.frame, self.success)
-        self._reward = total_reward(terms)
+        """Energy, docking, mating, what every robot sees, the termination and the reward
+        (``TaskEpisode.end``)."""
+        step = self.episode.end()
+        self.last_events = step.events
+        self.success = step.success
+        self._terminated = step.terminated
+        self._reward = step.reward
 
     # --- actions -------------------------------------------------------------------------------
     def _read_action(self, action: Any) -> None:
@@ -334,36 +308,18 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
                     f"{value.max():.4g}"
                 )
             values[key] = value
-        self._wheels[:k] = values["wheels"]
-        self._wheels[k:] = 0.0
-        switches = {"led": self._led, "mate": self._mate, "recharge": self._recharge}
-        for name in self._action_switches:
-            np.greater(values[name], SWITCH_ON, out=switches[name][:k])
-            switches[name][k:] = False
+        episode = self.episode
+        episode.wheels[:k] = values["wheels"]
+        episode.wheels[k:] = 0.0
+        for name, target in zip(episode.switches, episode.action_switches, strict=True):
+            np.greater(values[name], SWITCH_ON, out=target[:k])
+            target[k:] = False
 
     # --- observations --------------------------------------------------------------------------
     def get_observation(self, physics: Physics | None = None) -> OrderedDict[str, np.ndarray]:
-        k = self.k
-        sw = self.survival
-        frame = self.frame
-        if frame is None:
-            raise RuntimeError("no observation before the first episode is initialised")
-        obs = OrderedDict()
-        obs["range"] = self.world.range_readings()[:k]
-        for key, cls in _TARGET_OBSERVATIONS:
-            target = np.empty((k, 3))
-            visible = frame.visible[:k, cls]
-            target[:, 0] = np.where(visible, frame.bearing[:k, cls], 0.0)
-            target[:, 1] = np.where(
-                visible, np.minimum(frame.distance[:k, cls], self.max_range), self.max_range
-            )
-            target[:, 2] = visible
-            obs[key] = target
-        obs["energy"] = sw.energy[:k].copy()
-        obs["led_on"] = self.world.led_on[:k].astype(np.float64)
-        obs["docked"] = sw.docked[:k].astype(np.float64)
-        obs["recharge_steps"] = sw.recharge_steps[:k].astype(np.float64)
-        return obs
+        """The controlled robots' entries of the observation table, grouped by name."""
+        table = self.episode.observations(np.float64)[: self.k]
+        return OrderedDict((name, table[:, columns].copy()) for name, columns in OBSERVATION_GROUPS)
 
     # --- reward and termination ---------------------------------------------------------------
     def get_reward(self, physics: Physics | None = None) -> np.ndarray:
@@ -372,9 +328,7 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
 
     def get_termination(self, physics: Physics | None = None) -> float | None:
         """Discount 0 at the task's success or at a death that ends it, else continue."""
-        if self.success or self.task_spec.dead(self.survival.alive, self.k):
-            return 0.0
-        return None
+        return 0.0 if self._terminated else None
 
     @classmethod
     def option_names(cls) -> tuple[str, ...]:
@@ -382,6 +336,14 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         spec = cls.task_spec
         start = ("start_in_view",) if spec.start is not None else ()
         return (*BASE_OPTIONS, *start, *spec.reward_options(spec.control_reward))
+
+
+def _bound(values: np.ndarray, k: int) -> float | np.ndarray:
+    """A spec's bound of ``k`` robots: one number where the group's entries share it, else the
+    entries' bounds for each robot."""
+    if values.ndim == 0 or (values == values[0]).all():
+        return float(values.flat[0])
+    return np.tile(values, (k, 1))
 
 
 def task_class(spec: TaskSpec) -> type[CyberRodentTask]:

@@ -10,18 +10,18 @@ from dm_env import specs
 
 from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.tasks.base import CyberRodentTask, task_class
-from cyber_rodent.tasks.spec import FORAGE, MATE, SEARCH, SURVIVAL, task_spec
+from cyber_rodent.tasks.spec import BUILT_IN, FORAGE, MATE, SEARCH, SURVIVAL, task_spec
 
-#: The built-in tasks' classes, made from their specs (:func:`task_class`).
+#: The built-in tasks' names, in registry order (``spec.task_names()`` lists every registered
+#: task, those added later too).
+TASK_NAMES = BUILT_IN
+#: The built-in tasks' classes by name, made from their specs (:func:`task_class`);
+#: :func:`load` also finds tasks registered later.
+TASKS: dict[str, type[CyberRodentTask]] = {name: task_class(task_spec(name)) for name in BUILT_IN}
 Survival = task_class(SURVIVAL)
 Forage = task_class(FORAGE)
 Mate = task_class(MATE)
 Search = task_class(SEARCH)
-#: The built-in tasks' classes by name; :func:`load` also finds tasks registered later.
-TASKS: dict[str, type[CyberRodentTask]] = {
-    cls.task_spec.name: cls for cls in (Survival, Forage, Mate, Search)
-}
-TASK_NAMES = tuple(TASKS)
 
 
 class CyberRodentEnvironment(control.Environment):  # type: ignore[misc]  # dm_control: no hints

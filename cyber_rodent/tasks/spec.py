@@ -4,12 +4,14 @@ A task's spec says everything that makes it that task: its field (robots, packs)
 act and which are parked, how an episode starts (re-drawn until a start condition holds), how it
 ends (success, death, the episode length), its rewards as named terms
 (:mod:`cyber_rodent.tasks.rewards`), and what its robots' LED, Mate signal and recharge decision
-are. Every consumer reads the spec and nothing else about the task:
+are. Every consumer reads the spec and nothing else about the task, and runs it through the one
+episode loop of :mod:`cyber_rodent.tasks.episode` (:class:`~cyber_rodent.tasks.episode.
+TaskEpisode`):
 
 * the dm-control tasks (:func:`cyber_rodent.tasks.load`; :mod:`cyber_rodent.tasks.base`),
 * the Gymnasium environments (:class:`cyber_rodent.gym_env.CyberRodentEnv`),
-* the PettingZoo colony (:mod:`cyber_rodent.colony_env`, the ``survival`` task with every robot
-  an agent),
+* the PettingZoo colony (:mod:`cyber_rodent.colony_env`: the ``survival`` task with every robot
+  an agent by default, any registered task with its learners the agents),
 * the behaviours' training and evaluation episodes (``behaviours.episodes``), and the rewards
   of evolution's learning mode (``evolution.learning``: the goals and Search's progress).
 
@@ -33,10 +35,10 @@ search      4 robots,     1 (3      any placement          death; 100 steps   sp
 
 Forage and Mate: the learners' Mate signal is the task's (Mate: on; its LEDs start on), Forage
 keeps recharging when it docks (the docking ends the episode anyway), Search's learner never
-recharges: in its behaviour episodes and Gymnasium environment a docking is released at once
-(``release_docking``). Parked robots stand still with their LEDs off. The behaviour tasks run
-with endless energy in their episodes and Gymnasium environments (``endless_energy``; energy is
-no behaviour's task). The Gymnasium ``Survival`` is one robot alone (``solo``), with its LED and
+recharges: in every interface a docking is released at once (``release_docking``). Parked
+robots stand still with their LEDs off. The behaviour tasks run with endless energy in their
+episodes and Gymnasium and PettingZoo environments (``endless_energy``; energy is no
+behaviour's task). The Gymnasium ``Survival`` is one robot alone (``solo``), with its LED and
 Mate signal off: only its recharge decision is its own.
 
 Why each built-in task is as it is:
@@ -62,7 +64,9 @@ Why each built-in task is as it is:
   still with its LED dark (agent replacement is evolution's job).
 
 Adding a task is one :func:`register` call with its spec; every consumer then offers it by name
-(``tasks.load(name)``, ``CyberRodentEnv(name)``). Example::
+(``tasks.load(name)``, ``CyberRodentEnv(name)``, ``ColonyEnv(task=name)``, ``cyber-rodent view
+--task name`` in the process that registered it): they all take the names from
+:func:`task_names`. Example::
 
     from cyber_rodent.tasks import rewards
     from cyber_rodent.tasks.spec import Field, TaskSpec, register
@@ -141,10 +145,11 @@ class TaskSpec:
         led: the learners' LED (None: each learner's action sets it).
         mate: the learners' Mate signal (None: each learner's action sets it).
         recharge: every robot's recharge decision while docked (None: each learner's action).
-        release_docking: a docking of a learner is released at once, without the reflex (in
-            the behaviour episodes and the Gymnasium environment).
-        endless_energy: the behaviour episodes and the Gymnasium environment run with endless
-            energy (``rewards.episode_rules``); otherwise the survival rules as given.
+        release_docking: a docking of a learner is released at the end of the step in which
+            it docked, without the reflex (in every interface: the episode loop does it).
+        endless_energy: the behaviour episodes and the Gymnasium and PettingZoo environments
+            run with endless energy (``rewards.episode_rules``); otherwise the survival rules
+            as given (the dm-control tasks always run the rules they are given).
         episode_steps: control steps after which an episode is cut.
         measure: what the Gymnasium environment reports as the task's measure in ``info``
             (:data:`MEASURES`).

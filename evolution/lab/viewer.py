@@ -9,9 +9,11 @@ What it shows, chosen by exactly one of:
   one, else the shipped trained behaviours).
 * ``--task NAME``: a dm-control task (:func:`cyber_rodent.tasks.load` with ``--seed``), its
   controlled robots driven by the shipped learned behaviours: in ``forage``, ``mate`` and
-  ``search`` they run that behaviour (both robots in ``mate``); in ``survival`` each robot picks
-  one by a fixed rule, :func:`survival_choice`, since no evolved controller comes with a task.
-  A finished episode starts the next one.
+  ``search`` they run that behaviour (both robots in ``mate``); in ``survival``, and in any
+  other registered task (:func:`check_task`: the names come from the task registry, so a task
+  a program registered opens too), each robot picks one by a fixed rule,
+  :func:`survival_choice`, since no evolved controller comes with a task. A finished episode
+  starts the next one.
 
 The simulation advances in whole control steps (``survival.control_dt`` of simulated time each,
 0.2 s by default), paced to the wall clock times ``--speed`` (:class:`Pacer`; after a stall,
@@ -61,6 +63,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 import numpy as np
 
 from cyber_rodent.constants import FIELD_SIZE
+from cyber_rodent.tasks.spec import task_names
 from evolution.checkpoint import CheckpointError, read_header
 from evolution.lab.api import CHECKPOINT_DIR, RUN_FILE
 from evolution.lab.experiment import policies_by_name, policies_for_identity, read_run_record
@@ -76,9 +79,6 @@ if TYPE_CHECKING:
 
 EXIT_USAGE = 2
 EXIT_FAILED = 1
-#: The task names of :mod:`cyber_rodent.tasks` (for ``--help`` without importing dm-control;
-#: checked against ``tasks.TASK_NAMES`` when a task is loaded).
-TASK_HELP_NAMES = "survival, forage, mate, search"
 MIN_SPEED = 0.01
 MAX_SPEED = 100.0
 #: GLFW key codes (what MuJoCo's viewer hands to the key callback).
@@ -110,6 +110,25 @@ class ViewerError(ValueError):
 
 class ViewerFailed(RuntimeError):
     """The viewer could not run (no window, no screenshot): one line, exit status 1."""
+
+
+def __getattr__(name: str) -> str:
+    if name == "TASK_HELP_NAMES":  # the registered tasks' names, as ``--help`` lists them
+        return ", ".join(task_names())
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def check_task(name: object) -> str:
+    """``--task``'s value as a registered task's name (lower case): a built-in task or one a
+    program registered (:func:`cyber_rodent.tasks.register`).
+
+    Raises:
+        ViewerError: no task of that name (the message lists the registered ones).
+    """
+    task = str(name).lower()
+    if task not in task_names():
+        raise ViewerError(f"--task must be one of {', '.join(task_names())}; got {name!r}")
+    return task
 
 
 # --- the camera -----------------------------------------------------------------------------------
@@ -311,9 +330,11 @@ class TaskSource:
         )
         led = (self.choice[:k] == self._mate).astype(np.float64)
         action: dict[str, np.ndarray] = {"wheels": self._speeds[commands[:k]], "led": led}
-        if self.fixed is None:  # survival: the mate signal follows Mate; recharge until full
-            survival = self.survival
+        open_switches = self.env.action_spec()
+        if "mate" in open_switches:  # the mate signal follows Mate
             action["mate"] = led.copy()
+        if "recharge" in open_switches:  # recharge until full
+            survival = self.survival
             action["recharge"] = (survival.energy[:k] < survival.config.max_energy).astype(
                 np.float64
             )
@@ -801,7 +822,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", default=None, metavar="FILE", help="a checkpoint file")
     parser.add_argument(
         "--task", default=None, metavar="NAME",
-        help=f"a dm-control task driven by the learned behaviours: {TASK_HELP_NAMES}",
+        help=f"a dm-control task driven by the learned behaviours: {', '.join(task_names())}",
     )  # fmt: skip
     parser.add_argument(
         "--seed", type=int, default=None, help="placement seed of --task (default 0)"
@@ -928,11 +949,7 @@ def _plan_source(args: argparse.Namespace) -> Plan:
     policies: BehaviourPolicies | None = None
     task: str | None = None
     if args.task is not None:
-        from cyber_rodent.tasks import TASK_NAMES
-
-        task = str(args.task).lower()
-        if task not in TASK_NAMES:
-            raise ViewerError(f"--task must be one of {', '.join(TASK_NAMES)}; got {args.task!r}")
+        task = check_task(args.task)
         from behaviours import BehaviourPolicies
 
         try:
