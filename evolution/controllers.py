@@ -25,9 +25,10 @@ entry of :data:`CONTROLLERS`, a :class:`ControllerSpec` that declares
 - whether a deployment bundle can hold it (its standalone reference step implements it).
 
 The runner's fused step is built around the rule by :func:`step_kernels`
-(:func:`evolution.kernels.build_step_kernels`: compiled in-process, once per controller and
-input table); the paper's controller with the paper's inputs brings its own fused kernels,
-compiled once per installation (``prebuilt``), which are the runs of the paper, bit for bit.
+(:func:`evolution.kernels.build_step_kernels`: the paper's fused functions rebuilt around the
+rule, compiled in-process, once per controller and input table); the paper's controller with
+the paper's inputs uses those functions as they are, compiled once per installation
+(``prebuilt``), which are the runs of the paper, bit for bit.
 
 Built in:
 
