@@ -122,13 +122,20 @@ class ControllerSettings(Protocol):
     against this registry, and the registry do not import each other."""
 
     @property
-    def controller(self) -> str: ...
+    def controller(self) -> str:
+        """``evolution.controller``: the controller's name in :data:`CONTROLLERS`."""
+
     @property
-    def inputs(self) -> str: ...
+    def inputs(self) -> str:
+        """``evolution.inputs``: the input names (:func:`evolution.input_kernels.select_inputs`)."""
+
     @property
-    def hidden_units(self) -> int: ...
+    def hidden_units(self) -> int:
+        """``evolution.hidden_units``: ``mlp``'s and ``ctrnn``'s units."""
+
     @property
-    def ctrnn(self) -> CtrnnRanges: ...
+    def ctrnn(self) -> CtrnnRanges:
+        """``evolution.ctrnn``: ``ctrnn``'s ranges."""
 
 
 @dataclass(frozen=True)
