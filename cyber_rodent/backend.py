@@ -22,6 +22,7 @@ import functools
 import hashlib
 import importlib.util
 import os
+import types
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal, TypeVar, cast
@@ -117,11 +118,14 @@ def jit_inline(function: F) -> F:
 
 
 def jit_built(function: F, *, inline: bool = False) -> F:
-    """Compile a kernel that a factory builds at run time (a closure over other kernels).
+    """Compile a kernel that a factory builds at run time (a closure over other kernels, or a
+    kernel's code rebuilt around other callees by :func:`with_callees`).
 
     Compiled in this process, never cached on disk: numba keys a closure's cache entry by its
     captured values, and a captured compiled function pickles differently in every process,
-    so the entry would never be found again. With ``inline`` it is inlined into every kernel
+    so the entry would never be found again; a rebuilt kernel has the name, source file and
+    code of the original it was built from, so it would find the original's entry and run the
+    original's callees. With ``inline`` it is inlined into every kernel
     that calls it, as :func:`jit_inline`. Without numba the function is returned unchanged.
     """
     if numba is None:  # pragma: no cover
@@ -130,6 +134,35 @@ def jit_built(function: F, *, inline: bool = False) -> F:
     if inline:
         options["inline"] = "always"
     return cast(F, numba.njit(**options)(function))
+
+
+def with_callees(function: F, **callees: Any) -> F:
+    """``function``'s own code with some of the names it reads from its module bound to others.
+
+    One source serves several builds: a fused kernel written once at module level (compiled
+    with :func:`jit`, cached on disk) is built again around other callees, e.g. another
+    controller's rule in place of the paper's. ``function`` is a compiled kernel or a plain
+    function; the result is a plain function over a copy of its module's namespace in which each
+    name of ``callees`` is bound to its value, to be compiled with :func:`jit_built`, never
+    :func:`jit` (its cache entry would be the original's), or called as it is, for a numpy
+    reference.
+
+    Raises:
+        ValueError: ``function`` reads no name of ``callees`` (a misspelling would otherwise
+            build the original unchanged).
+    """
+    source = getattr(function, "py_func", function)
+    code = source.__code__
+    unread = sorted(set(callees) - set(code.co_names))
+    if unread:
+        raise ValueError(f"{source.__qualname__} reads no name {', '.join(unread)}")
+    built = types.FunctionType(
+        code, {**source.__globals__, **callees}, source.__name__, source.__defaults__,
+        source.__closure__,
+    )  # fmt: skip
+    built.__qualname__ = source.__qualname__
+    built.__doc__ = source.__doc__
+    return cast(F, built)
 
 
 def pick(backend: Backend, compiled: F, reference: F) -> F:
@@ -165,4 +198,5 @@ __all__ = [
     "jit_inline",
     "kernel_sources",
     "pick",
+    "with_callees",
 ]

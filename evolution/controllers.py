@@ -25,9 +25,10 @@ entry of :data:`CONTROLLERS`, a :class:`ControllerSpec` that declares
 - whether a deployment bundle can hold it (its standalone reference step implements it).
 
 The runner's fused step is built around the rule by :func:`step_kernels`
-(:func:`evolution.kernels.build_step_kernels`: compiled in-process, once per controller and
-input table); the paper's controller with the paper's inputs brings its own fused kernels,
-compiled once per installation (``prebuilt``), which are the runs of the paper, bit for bit.
+(:func:`evolution.kernels.build_step_kernels`: the paper's fused functions rebuilt around the
+rule, compiled in-process, once per controller and input table); the paper's controller with
+the paper's inputs uses those functions as they are, compiled once per installation
+(``prebuilt``), which are the runs of the paper, bit for bit.
 
 Built in:
 
@@ -58,7 +59,7 @@ import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
@@ -98,8 +99,43 @@ from evolution.kernels import (
     decide_paper_reference,
 )
 
-if TYPE_CHECKING:
-    from evolution.config import EvolutionConfig
+
+class CtrnnRanges(Protocol):
+    """The ranges of the ``ctrnn`` controller's time constants and gains
+    (:class:`evolution.config.CtrnnConfig`)."""
+
+    @property
+    def tau_low(self) -> float: ...
+    @property
+    def tau_high(self) -> float: ...
+    @property
+    def gain_low(self) -> float: ...
+    @property
+    def gain_high(self) -> float: ...
+
+
+class ControllerSettings(Protocol):
+    """The settings the built-in controllers read of a run's configuration. A controller's
+    functions (:class:`ControllerSpec`) and :func:`resolve` are given the run's
+    :class:`evolution.config.EvolutionConfig`, of which a registered controller may read any
+    field; it is named here by these fields so that the config, which checks its controller
+    against this registry, and the registry do not import each other."""
+
+    @property
+    def controller(self) -> str:
+        """``evolution.controller``: the controller's name in :data:`CONTROLLERS`."""
+
+    @property
+    def inputs(self) -> str:
+        """``evolution.inputs``: the input names (:func:`evolution.input_kernels.select_inputs`)."""
+
+    @property
+    def hidden_units(self) -> int:
+        """``evolution.hidden_units``: ``mlp``'s and ``ctrnn``'s units."""
+
+    @property
+    def ctrnn(self) -> CtrnnRanges:
+        """``evolution.ctrnn``: ``ctrnn``'s ranges."""
 
 
 @dataclass(frozen=True)
@@ -153,13 +189,13 @@ class ControllerSpec:
 
     name: str
     description: str
-    blocks: Callable[[EvolutionConfig, int], tuple[GeneBlock, ...]]
+    blocks: Callable[[ControllerSettings, int], tuple[GeneBlock, ...]]
     decide: ControllerKernel
     decide_reference: ControllerKernel
     deployable: bool = False
     prebuilt: StepKernels | None = None
-    state_size: Callable[[EvolutionConfig, int], int] | None = None
-    constants: Callable[[EvolutionConfig], tuple[float, ...]] | None = None
+    state_size: Callable[[ControllerSettings, int], int] | None = None
+    constants: Callable[[ControllerSettings], tuple[float, ...]] | None = None
 
     def __post_init__(self) -> None:
         if not re.fullmatch(r"[a-z][a-z0-9_]*", self.name):
@@ -174,7 +210,7 @@ def paper_blocks(n_inputs: int) -> tuple[GeneBlock, ...]:
     )
 
 
-def _mlp_blocks(config: EvolutionConfig, n_inputs: int) -> tuple[GeneBlock, ...]:
+def _mlp_blocks(config: ControllerSettings, n_inputs: int) -> tuple[GeneBlock, ...]:
     units = config.hidden_units
     return (
         GeneBlock("recharge", (N_RECHARGE,), "weights of energy, steps recharged and bias"),
@@ -183,7 +219,7 @@ def _mlp_blocks(config: EvolutionConfig, n_inputs: int) -> tuple[GeneBlock, ...]
     )
 
 
-def _ctrnn_blocks(config: EvolutionConfig, n_inputs: int) -> tuple[GeneBlock, ...]:
+def _ctrnn_blocks(config: ControllerSettings, n_inputs: int) -> tuple[GeneBlock, ...]:
     units = config.hidden_units
     return (
         GeneBlock("recharge", (N_RECHARGE,), "weights of energy, steps recharged and bias"),
@@ -336,7 +372,7 @@ class ControllerLayout:
 
 
 def resolve(
-    config: EvolutionConfig, inputs: tuple[ControllerInput, ...] | None = None
+    config: ControllerSettings, inputs: tuple[ControllerInput, ...] | None = None
 ) -> ControllerLayout:
     """The controller of ``config`` (``evolution.controller``) over ``inputs`` (default: the
     run's, ``evolution.inputs``: :func:`evolution.input_kernels.select_inputs`).
@@ -359,7 +395,7 @@ def resolve(
     return ControllerLayout(spec, tuple(spec.blocks(config, len(rows))), rows, size, constants)
 
 
-def genome_length(config: EvolutionConfig) -> int:
+def genome_length(config: ControllerSettings) -> int:
     """The controller's genes for ``config`` (without learning mode's)."""
     return resolve(config).length
 

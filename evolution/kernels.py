@@ -12,9 +12,10 @@
   control step in one call: the geometric vision's nearest targets
   (:mod:`cyber_rodent.vision.kernels`), the input mapping and the greedy behaviours
   (:mod:`behaviours.kernels`), :func:`decide` and :func:`steer`, in that order;
-* :func:`build_step_kernels`: the same fused call (and learning mode's) for any controller and
-  input table, built in-process around that controller's kernel (:class:`StepKernels`;
-  :data:`PAPER_STEP` holds the module's own, compiled once per installation);
+* :data:`PAPER_STEP`: the paper's deciding stage and fused calls (learning mode's too), each
+  beside its reference (:class:`StepKernels`), compiled once per installation;
+  :func:`build_step_kernels` builds the same functions, their code unchanged, around any other
+  controller's kernel and input table, in-process;
 * :func:`tick` / :func:`tick_reference`: the time-sharing scheduler's per-step bookkeeping
   (ageing, time slices, energy, captures) and whether anything may end a slot this step.
 
@@ -51,7 +52,7 @@ from behaviours.kernels import (
     map_inputs,
     map_inputs_reference,
 )
-from cyber_rodent.backend import jit, jit_built, jit_inline
+from cyber_rodent.backend import jit, jit_built, jit_inline, with_callees
 from cyber_rodent.vision.kernels import (
     GeometricScene,
     NearestTargets,
@@ -279,12 +280,10 @@ def decide(
     decide_paper(rules, robots, perceived, out)
 
 
-def decide_reference(
-    rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
-) -> None:
-    """:func:`decide` in numpy."""
-    fill_inputs_reference(rules, robots, perceived, out.inputs)
-    decide_paper_reference(rules, robots, perceived, out)
+#: :func:`decide` in numpy: its own code over the references of the rules it calls.
+decide_reference = with_callees(
+    decide, fill_inputs=fill_inputs_reference, decide_paper=decide_paper_reference
+)
 
 
 # --- acting ------------------------------------------------------------------------------------
@@ -313,7 +312,23 @@ def steer_reference(
     np.equal(decided.behaviour, MATE, out=out.mate)
 
 
-# --- one fused call ----------------------------------------------------------------------------
+# --- the fused calls ---------------------------------------------------------------------------
+@jit_inline
+def sense_decide(scene: GeometricScene, perceive: Perceive, decided: Decide) -> None:
+    """The fused calls' first half for every robot: the nearest targets, the inputs, then the
+    controller (:func:`decide`)."""
+    nearest(scene, perceive.nearest)
+    map_inputs(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
+    decide(decided.rules, decided.robots, perceive.out, decided.out)
+
+
+#: :func:`sense_decide` in numpy: its own code over the references of the rules it calls.
+sense_decide_reference = with_callees(
+    sense_decide, nearest=nearest_reference, map_inputs=map_inputs_reference,
+    decide=decide_reference,
+)  # fmt: skip
+
+
 @jit
 def sense_decide_act(scene: GeometricScene, perceive: Perceive, decided: Decide, act: Act) -> int:
     """Sense, decide and act for every robot; returns the greedy behaviours' status.
@@ -322,31 +337,12 @@ def sense_decide_act(scene: GeometricScene, perceive: Perceive, decided: Decide,
         ``behaviours.kernels.OK``, or its error code (then ``act.out`` is incomplete; the
         caller raises the error it names).
     """
-    nearest(scene, perceive.nearest)
-    map_inputs(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
-    decide(decided.rules, decided.robots, perceive.out, decided.out)
+    sense_decide(scene, perceive, decided)
     status = greedy_commands(
         decided.out.behaviour, perceive.out.behaviour, act.tables, act.out.commands
     )
-    if status != OK:
-        return status
-    steer(decided.out, act.docked, act.command_speeds, act.out)
-    return status
-
-
-def sense_decide_act_reference(
-    scene: GeometricScene, perceive: Perceive, decided: Decide, act: Act
-) -> int:
-    """:func:`sense_decide_act` with the numpy references, in the same order."""
-    nearest_reference(scene, perceive.nearest)
-    map_inputs_reference(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
-    decide_reference(decided.rules, decided.robots, perceive.out, decided.out)
-    status = greedy_commands_reference(
-        decided.out.behaviour, perceive.out.behaviour, act.tables, act.out.commands
-    )
-    if status != OK:
-        return status
-    steer_reference(decided.out, act.docked, act.command_speeds, act.out)
+    if status == OK:
+        steer(decided.out, act.docked, act.command_speeds, act.out)
     return status
 
 
@@ -356,34 +352,26 @@ def sense_decide_learn(
 ) -> int:
     """:func:`sense_decide_act` in learning mode: the agents' own learners act (and learn)
     in place of the fixed greedy behaviours (:func:`behaviours.kernels.learn_commands`)."""
-    nearest(scene, perceive.nearest)
-    map_inputs(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
-    decide(decided.rules, decided.robots, perceive.out, decided.out)
+    sense_decide(scene, perceive, decided)
     status = learn_commands(
         decided.out.behaviour, perceive.out.behaviour, act.tables, act.values, act.episodes,
         act.step, act.out.commands,
     )  # fmt: skip
-    if status != OK:
-        return status
-    steer(decided.out, act.docked, act.command_speeds, act.out)
+    if status == OK:
+        steer(decided.out, act.docked, act.command_speeds, act.out)
     return status
 
 
-def sense_decide_learn_reference(
-    scene: GeometricScene, perceive: Perceive, decided: Decide, act: LearnAct
-) -> int:
-    """:func:`sense_decide_learn` with the numpy references, in the same order."""
-    nearest_reference(scene, perceive.nearest)
-    map_inputs_reference(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
-    decide_reference(decided.rules, decided.robots, perceive.out, decided.out)
-    status = learn_commands_reference(
-        decided.out.behaviour, perceive.out.behaviour, act.tables, act.values, act.episodes,
-        act.step, act.out.commands,
-    )  # fmt: skip
-    if status != OK:
-        return status
-    steer_reference(decided.out, act.docked, act.command_speeds, act.out)
-    return status
+#: The fused calls in numpy: each one's own code over the references of the rules it calls, so
+#: they call them in the same order.
+sense_decide_act_reference = with_callees(
+    sense_decide_act, sense_decide=sense_decide_reference,
+    greedy_commands=greedy_commands_reference, steer=steer_reference,
+)  # fmt: skip
+sense_decide_learn_reference = with_callees(
+    sense_decide_learn, sense_decide=sense_decide_reference,
+    learn_commands=learn_commands_reference, steer=steer_reference,
+)  # fmt: skip
 
 
 # --- the fused calls of any controller -------------------------------------------------------
@@ -423,85 +411,33 @@ def build_step_kernels(
     decide_rule: ControllerKernel,
     decide_rule_reference: ControllerKernel,
 ) -> StepKernels:
-    """The fused calls of a controller (``decide_rule``: it reads the filled inputs) with an
-    input table (``fill``), built in this process.
+    """:data:`PAPER_STEP` for another controller (``decide_rule``: it reads the filled inputs)
+    or input table (``fill``), built in this process.
 
-    The bodies are those of :func:`decide`, :func:`sense_decide_act` and
-    :func:`sense_decide_learn` with the given kernels in place of the paper's; they are
-    compiled on first use and not cached on disk (:func:`cyber_rodent.backend.jit_built`).
-    Build them once per controller and table (:func:`evolution.controllers.step_kernels`).
+    One source serves the paper's controller and every other: the kernels are this module's
+    own, their code unchanged, rebuilt around other callees
+    (:func:`cyber_rodent.backend.with_callees`): :func:`decide` with ``fill`` and
+    ``decide_rule`` in place of the paper's ``fill_inputs`` and ``decide_paper``,
+    :func:`sense_decide` around that :func:`decide`, and :func:`sense_decide_act` and
+    :func:`sense_decide_learn` around that :func:`sense_decide` (the references likewise, around
+    the given references). They are compiled on first use and not cached on disk
+    (:func:`cyber_rodent.backend.jit_built`). Build them once per controller and table
+    (:func:`evolution.controllers.step_kernels`).
     """
-
-    def controller_py(
-        rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
-    ) -> None:
-        fill(rules, robots, perceived, out.inputs)
-        decide_rule(rules, robots, perceived, out)
-
-    def controller_reference(
-        rules: ControllerRules, robots: RobotState, perceived: InputBuffers, out: ControllerBuffers
-    ) -> None:
-        fill_reference(rules, robots, perceived, out.inputs)
-        decide_rule_reference(rules, robots, perceived, out)
-
-    controller = jit_built(controller_py, inline=True)
-
-    def act_py(scene: GeometricScene, perceive: Perceive, decided: Decide, act: Act) -> int:
-        nearest(scene, perceive.nearest)
-        map_inputs(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
-        controller(decided.rules, decided.robots, perceive.out, decided.out)
-        status = greedy_commands(
-            decided.out.behaviour, perceive.out.behaviour, act.tables, act.out.commands
-        )
-        if status != OK:
-            return status
-        steer(decided.out, act.docked, act.command_speeds, act.out)
-        return status
-
-    def act_reference(scene: GeometricScene, perceive: Perceive, decided: Decide, act: Act) -> int:
-        nearest_reference(scene, perceive.nearest)
-        map_inputs_reference(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
-        controller_reference(decided.rules, decided.robots, perceive.out, decided.out)
-        status = greedy_commands_reference(
-            decided.out.behaviour, perceive.out.behaviour, act.tables, act.out.commands
-        )
-        if status != OK:
-            return status
-        steer_reference(decided.out, act.docked, act.command_speeds, act.out)
-        return status
-
-    def learn_py(scene: GeometricScene, perceive: Perceive, decided: Decide, act: LearnAct) -> int:
-        nearest(scene, perceive.nearest)
-        map_inputs(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
-        controller(decided.rules, decided.robots, perceive.out, decided.out)
-        status = learn_commands(
-            decided.out.behaviour, perceive.out.behaviour, act.tables, act.values, act.episodes,
-            act.step, act.out.commands,
-        )  # fmt: skip
-        if status != OK:
-            return status
-        steer(decided.out, act.docked, act.command_speeds, act.out)
-        return status
-
-    def learn_reference(
-        scene: GeometricScene, perceive: Perceive, decided: Decide, act: LearnAct
-    ) -> int:
-        nearest_reference(scene, perceive.nearest)
-        map_inputs_reference(perceive.sensors, perceive.nearest, perceive.rules, perceive.out)
-        controller_reference(decided.rules, decided.robots, perceive.out, decided.out)
-        status = learn_commands_reference(
-            decided.out.behaviour, perceive.out.behaviour, act.tables, act.values, act.episodes,
-            act.step, act.out.commands,
-        )  # fmt: skip
-        if status != OK:
-            return status
-        steer_reference(decided.out, act.docked, act.command_speeds, act.out)
-        return status
-
+    controller = jit_built(
+        with_callees(decide, fill_inputs=fill, decide_paper=decide_rule), inline=True
+    )
+    reference = with_callees(decide, fill_inputs=fill_reference, decide_paper=decide_rule_reference)
+    sensed = jit_built(with_callees(sense_decide, decide=controller), inline=True)
+    sensed_reference = with_callees(sense_decide_reference, decide=reference)
     return StepKernels(
-        controller, controller_reference, jit_built(act_py), act_reference, jit_built(learn_py),
-        learn_reference,
-    )  # fmt: skip
+        controller,
+        reference,
+        jit_built(with_callees(sense_decide_act, sense_decide=sensed)),
+        with_callees(sense_decide_act_reference, sense_decide=sensed_reference),
+        jit_built(with_callees(sense_decide_learn, sense_decide=sensed)),
+        with_callees(sense_decide_learn_reference, sense_decide=sensed_reference),
+    )
 
 
 # --- scheduler ---------------------------------------------------------------------------------
@@ -580,8 +516,10 @@ __all__ = [
     "sense_decide_learn_reference",
     "Decide",
     "Perceive",
+    "sense_decide",
     "sense_decide_act",
     "sense_decide_act_reference",
+    "sense_decide_reference",
     "steer",
     "steer_reference",
     "IN_BATTERY_DISTANCE",

@@ -15,7 +15,7 @@ import pytest
 
 from behaviours import BehaviourPolicies
 from behaviours.kernels import BehaviourInputs, InputBuffers
-from cyber_rodent.backend import jit_built
+from cyber_rodent.backend import jit_built, with_callees
 from cyber_rodent.cli import main as cli_main
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 from evolution.checkpoint import CheckpointError
@@ -47,11 +47,13 @@ from evolution.input_kernels import (
     unregister_input,
 )
 from evolution.kernels import (
+    PAPER_STEP,
     ControllerBuffers,
     choose,
     choose_reference,
     recharge_decision,
     recharge_decision_reference,
+    sense_decide_act,
 )
 from evolution.runner import EvolutionRunner, RunConfig
 from evolution.runner.settings import parse_set, settings, to_toml
@@ -411,6 +413,18 @@ def test_the_built_kernels_of_the_paper_give_the_paper_run() -> None:
         assert len(runs[0][1]) > 0 and runs[0][2] == runs[1][2]
     finally:
         unregister_controller("paper_built")
+
+
+def test_every_controller_runs_the_papers_fused_code() -> None:
+    """One source: another controller's stage and fused calls, and their references, are the
+    paper's own functions, their code unchanged, rebuilt around its rule."""
+    built = step_kernels(MLP, INPUTS)
+    for kernel, paper in zip(built, PAPER_STEP, strict=True):
+        assert kernel is not paper
+        code = getattr(kernel, "py_func", kernel).__code__
+        assert code is getattr(paper, "py_func", paper).__code__
+    with pytest.raises(ValueError, match="reads no name decide_paper"):
+        with_callees(sense_decide_act, decide_paper=decide_mlp)  # it calls decide, not that
 
 
 # --- the input table -----------------------------------------------------------------------------

@@ -35,7 +35,7 @@ import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -59,9 +59,53 @@ from evolution.runner.settings import settings
 from evolution.runner.world_state import capture_world, restore_world
 
 if TYPE_CHECKING:
-    from evolution.runner.step import EvolutionRunner
+    from cyber_rodent.profiles import RangeSensorNoise
+    from cyber_rodent.survival import SurvivalWorld
+    from cyber_rodent.survival.watchdog import Watchdog
+    from cyber_rodent.vision import VisionProvider
+    from evolution.controller import NeuralController
+    from evolution.kernels import ActionBuffers
+    from evolution.learning import LifetimeLearning
+    from evolution.runner.events import EventLog
+    from evolution.scheduler import TimeSharingScheduler
 
-Runner = TypeVar("Runner", bound="EvolutionRunner")
+
+class ResumableRun(Protocol):
+    """What a run checkpoint holds of a runner and how one is rebuilt from it (see the module
+    docstring): the members of :class:`evolution.runner.step.EvolutionRunner` it reads and
+    writes, named here so that the runner, which saves and loads through this module, and this
+    module do not import each other."""
+
+    config: RunConfig
+    seed: int
+    policies_id: str
+    initial_genomes_id: str | None
+    fingerprint: str
+    steps: int
+    generation_steps: list[int]
+    scheduler: TimeSharingScheduler
+    events: EventLog
+    survival: SurvivalWorld
+    vision: VisionProvider
+    range_noise: RangeSensorNoise | None
+    learning: LifetimeLearning | None
+    controller: NeuralController
+    action: ActionBuffers
+    watchdog: Watchdog
+
+    def __init__(
+        self, config: RunConfig, seed: int, policies: BehaviourPolicies | None = None, *,
+        backend: Backend = DEFAULT_BACKEND,
+    ) -> None: ...  # fmt: skip
+
+    def remember_docked_agents(self) -> None:
+        """Note each robot's active agent as the one recharging (once, on a restored run)."""
+
+    def close(self) -> None:
+        """Release what the runner holds."""
+
+
+Runner = TypeVar("Runner", bound=ResumableRun)
 
 #: Kind prefix of run checkpoints (the method follows).
 KIND_PREFIX = "evolution-run-"
@@ -164,7 +208,7 @@ def run_fingerprint(
 PAPER_INPUT_NAMES = [row.name for row in PAPER_INPUTS]
 
 
-def _inputs_difference(state: dict[str, Any], runner: EvolutionRunner) -> str:
+def _inputs_difference(state: dict[str, Any], runner: ResumableRun) -> str:
     """"" if ``state``'s run read the inputs ``runner`` reads, else the difference in words."""
     saved = state.get("inputs", PAPER_INPUT_NAMES)
     here = [row.name for row in runner.controller.layout.inputs]
@@ -200,7 +244,7 @@ def _record_differences(saved: object, parsed: RunConfig) -> str:
 
 
 # --- state ----------------------------------------------------------------------------------
-def runner_state(runner: EvolutionRunner) -> dict[str, Any]:
+def runner_state(runner: ResumableRun) -> dict[str, Any]:
     """The complete state of ``runner`` as plain data (see the module docstring)."""
     noise = runner.range_noise
     return {
@@ -221,7 +265,7 @@ def runner_state(runner: EvolutionRunner) -> dict[str, Any]:
     }
 
 
-def restore_runner(runner: EvolutionRunner, state: dict[str, Any]) -> None:
+def restore_runner(runner: ResumableRun, state: dict[str, Any]) -> None:
     """Write a :func:`runner_state` into a runner freshly built with the same config, seed
     and policies, in place.
 
@@ -260,7 +304,7 @@ def restore_runner(runner: EvolutionRunner, state: dict[str, Any]) -> None:
 
 
 # --- files ----------------------------------------------------------------------------------
-def save_run(runner: EvolutionRunner, path: str | os.PathLike[str]) -> Path:
+def save_run(runner: ResumableRun, path: str | os.PathLike[str]) -> Path:
     """Write ``runner``'s complete state to ``path`` atomically; return the path."""
     path = Path(path)
     save_checkpoint(
@@ -419,6 +463,7 @@ def prune_checkpoints(directory: str | os.PathLike[str], keep: int) -> None:
 
 __all__ = [
     "KIND_PREFIX",
+    "ResumableRun",
     "checkpoint_kind",
     "checkpoint_path",
     "genomes_identity",

@@ -12,7 +12,7 @@ import os
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 from cyber_rodent.validation import check_integer
 from evolution.runner.checkpoints import checkpoint_path, prune_checkpoints
@@ -21,14 +21,38 @@ from evolution.scheduler import CentralisedEvolution, EmbodiedEvolution
 if TYPE_CHECKING:
     import pandas as pd
 
-    from evolution.runner.step import EvolutionRunner
+    from evolution.runner.config import RunConfig
+    from evolution.scheduler import TimeSharingScheduler
 
 #: Control steps between progress-bar refreshes while a generation is under way.
 PROGRESS_EVERY = 500
 
 
+class SteppedRun(Protocol):
+    """What the loop drives: the members of :class:`evolution.runner.step.EvolutionRunner` it
+    reads, named here so that the runner, which runs this loop, and the loop do not import each
+    other."""
+
+    config: RunConfig
+    seed: int
+    steps: int
+    scheduler: TimeSharingScheduler
+
+    @property
+    def completed_generations(self) -> int: ...
+
+    def step(self) -> bool: ...
+
+    def save_checkpoint(self, path: str | os.PathLike[str]) -> Path: ...
+
+    def statistics(self) -> pd.DataFrame: ...
+
+
+Run = TypeVar("Run", bound=SteppedRun)
+
+
 def run_generations(
-    runner: EvolutionRunner,
+    runner: Run,
     generations: int,
     *,
     checkpoint_dir: str | os.PathLike[str] | None = None,
@@ -36,7 +60,7 @@ def run_generations(
     keep_checkpoints: int = 3,
     max_steps: int | None = None,
     progress: bool = False,
-    on_generation: Callable[[EvolutionRunner], object] | None = None,
+    on_generation: Callable[[Run], object] | None = None,
 ) -> pd.DataFrame:
     """Step ``runner`` until ``generations`` generations have completed; return its statistics.
 
@@ -104,7 +128,7 @@ def run_generations(
     return runner.statistics()
 
 
-def generation_progress(runner: EvolutionRunner) -> float:
+def generation_progress(runner: SteppedRun) -> float:
     """Completed generations plus the share of the next one done (for progress bars).
 
     EE: the share of the slots (up to the closing quorum) already past the next generation;
@@ -122,7 +146,7 @@ def generation_progress(runner: EvolutionRunner) -> float:
 
 
 def show_progress(
-    runner: EvolutionRunner, bar: Any, generations: int, started: float, start_steps: int
+    runner: SteppedRun, bar: Any, generations: int, started: float, start_steps: int
 ) -> None:
     """Refresh ``bar``: generations (with the share of the next), steps, rate, last row."""
     rate = (runner.steps - start_steps) / max(time.perf_counter() - started, 1e-9)
@@ -136,4 +160,10 @@ def show_progress(
     bar.refresh()
 
 
-__all__ = ["PROGRESS_EVERY", "generation_progress", "run_generations", "show_progress"]
+__all__ = [
+    "PROGRESS_EVERY",
+    "SteppedRun",
+    "generation_progress",
+    "run_generations",
+    "show_progress",
+]
