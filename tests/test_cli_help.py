@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from cyber_rodent.cli import build_parser, main
+from evolution.cli import build_parser, main
 
 HELP = Path(__file__).with_name("cli_help")
 TOP = "cyber-rodent"
@@ -40,7 +40,7 @@ def test_help_is_unchanged(
 def test_help_of_the_module_run_as_a_program() -> None:
     """``python -m`` prints the same text, under the program name ``cyber-rodent``."""
     result = subprocess.run(
-        [sys.executable, "-m", "cyber_rodent.cli", "--help"],
+        [sys.executable, "-m", "evolution.cli", "--help"],
         capture_output=True,
         text=True,
         timeout=120,

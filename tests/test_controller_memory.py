@@ -15,8 +15,8 @@ import pytest
 
 from behaviours import BehaviourPolicies
 from behaviours.kernels import BehaviourInputs, InputBuffers
-from cyber_rodent.cli import main as cli_main
 from cyber_rodent.world import WorldConfig
+from evolution.cli import main as cli_main
 from evolution.config import GENOME_LENGTH, CtrnnConfig, EvolutionConfig
 from evolution.controller import NeuralController
 from evolution.controller_kernels import decide_ctrnn, decide_ctrnn_reference

@@ -16,9 +16,9 @@ import pytest
 from behaviours import BehaviourPolicies
 from behaviours.kernels import BehaviourInputs, InputBuffers
 from cyber_rodent.backend import jit_built
-from cyber_rodent.cli import main as cli_main
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 from evolution.checkpoint import CheckpointError
+from evolution.cli import main as cli_main
 from evolution.config import GENOME_LENGTH, EvolutionConfig, GeneticConfig
 from evolution.controller import NeuralController
 from evolution.controller_kernels import decide_mlp, decide_mlp_reference

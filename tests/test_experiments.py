@@ -30,7 +30,7 @@ TINY_OVERRIDES = {
 
 def cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "cyber_rodent.cli", *args],
+        [sys.executable, "-m", "evolution.cli", *args],
         capture_output=True,
         text=True,
         timeout=timeout,
@@ -112,7 +112,7 @@ def test_kill_mid_run_then_resume_is_identical(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "cyber_rodent.cli",
+            "evolution.cli",
             "evolve",
             "--generations",
             "3",

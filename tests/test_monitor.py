@@ -45,7 +45,7 @@ def cli(*args: str, block_tensorboard: bool = False) -> subprocess.CompletedProc
     """The command line in a subprocess; with ``block_tensorboard`` as if the package were not
     installed (its import fails)."""
     block = "sys.modules['tensorboard'] = None; " if block_tensorboard else ""
-    code = f"import sys; {block}from cyber_rodent.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = f"import sys; {block}from evolution.cli import main; sys.exit(main(sys.argv[1:]))"
     return subprocess.run(
         [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=600,
         env={**os.environ, "LP_NUM_THREADS": "1"},

@@ -27,7 +27,6 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from cyber_rodent.cli import main
 from cyber_rodent.plugins import (
     MODULE_PREFIX,
     Plugin,
@@ -41,6 +40,7 @@ from cyber_rodent.plugins import (
     plugin_source,
     plugins_from_records,
 )
+from evolution.cli import main
 
 #: docs/extending.md §1's controller as a plugin file: three preference genes after the paper's
 #: recharge block.
@@ -129,7 +129,7 @@ def sha256_of(path: Path) -> str:
 def cli(*args: str) -> subprocess.CompletedProcess:
     """The command line in a process of its own (a fresh process loads the plugin anew)."""
     return subprocess.run(
-        [sys.executable, "-m", "cyber_rodent.cli", *args],
+        [sys.executable, "-m", "evolution.cli", *args],
         capture_output=True, text=True, timeout=600,
         env={**os.environ, "LP_NUM_THREADS": "1"},
     )  # fmt: skip

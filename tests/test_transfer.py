@@ -163,7 +163,7 @@ def test_transfer_is_deterministic(source_run, tmp_path) -> None:
 
 
 def test_cli_transfer_reports_a_missing_generation_in_one_line(source_run, tmp_path, capsys):
-    from cyber_rodent.cli import main
+    from evolution.cli import main
 
     code = main(["transfer", "--from", str(source_run), "--generation", "40",
                  "--out", str(tmp_path / "t")])  # fmt: skip
