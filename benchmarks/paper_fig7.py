@@ -44,6 +44,8 @@ from evolution.lab.api import (
     ROBOT_STATISTICS_FILE,
     RUN_FILE,
     STATISTICS_FILE,
+    RunOutput,
+    RunSpec,
     holds_a_run,
     make_config,
 )
@@ -95,8 +97,8 @@ def run_source(
                              f"{record['seed']}, not the EE run of seed {seed}")  # fmt: skip
         return "reused"
     resume = holds_a_run(out)
-    evolve("ee", generations, seed, out, overrides=overrides, resume=resume,
-           keep_checkpoints=0, progress=progress)  # fmt: skip
+    spec = RunSpec("ee", generations, seed, overrides=overrides)
+    evolve(spec, RunOutput(out, keep_checkpoints=0, progress=progress), resume=resume)
     return "resumed" if resume else "evolved"
 
 

@@ -128,23 +128,23 @@ def test_evolve_tensorboard_equals_statistics_and_changes_nothing(tmp_path: Path
 
 def test_resume_continues_without_repeating_a_generation(tmp_path: Path) -> None:
     pytest.importorskip("tensorboard")
-    from behaviours import BehaviourPolicies
-    from evolution.lab.api import run
+    from evolution.lab.api import RunOutput, RunSpec, execute
 
-    reactive = BehaviourPolicies.reactive()
     out, board = tmp_path / "run", tmp_path / "tb"
     # A checkpoint every 2 generations: the third is written to TensorBoard but not
     # checkpointed, so the resumed run closes it again.
-    first = run(
-        "ee", 3, 0, out_dir=out, policies=reactive, checkpoint_every=2, tensorboard=board,
-        **TINY,
-    )  # fmt: skip
+    first = execute(
+        RunSpec("ee", 3, 0, overrides=TINY, policies="reactive"),
+        RunOutput(out, checkpoint_every=2, tensorboard=board),
+    )
     assert len(first) == 3 and sorted(p.name for p in (out / "checkpoints").iterdir()) == [
         "gen_00002.ckpt"
     ]
     assert [e.step for e in read_board(board).Scalars("agents/deaths")] == [0, 1, 2]
-    table = run(
-        "ee", 4, 0, out_dir=out, policies=reactive, resume=True, tensorboard=board, **TINY
+    table = execute(
+        RunSpec("ee", 4, 0, overrides=TINY, policies="reactive"),
+        RunOutput(out, tensorboard=board),
+        resume=True,
     )
     assert len(list(board.glob("events.out.tfevents.*"))) == 2  # a new file for the resumed run
     pd.testing.assert_frame_equal(table, pd.read_csv(out / "statistics.csv"))
@@ -153,12 +153,11 @@ def test_resume_continues_without_repeating_a_generation(tmp_path: Path) -> None
 
 def test_tensorboard_without_out_dir(tmp_path: Path) -> None:
     pytest.importorskip("tensorboard")
-    from behaviours import BehaviourPolicies
-    from evolution.lab.api import run
+    from evolution.lab.api import RunOutput, RunSpec, execute, run
 
-    reactive = BehaviourPolicies.reactive()
-    table = run("ce", 2, 0, policies=reactive, tensorboard=tmp_path / "tb", **TINY)
-    pd.testing.assert_frame_equal(table, run("ce", 2, 0, policies=reactive, **TINY))
+    spec = RunSpec("ce", 2, 0, overrides=TINY, policies="reactive")
+    table = execute(spec, RunOutput(tensorboard=tmp_path / "tb"))
+    pd.testing.assert_frame_equal(table, run("ce", 2, 0, policies="reactive", **TINY))
     assert_board_equals_table(tmp_path / "tb", table)
 
 

@@ -12,7 +12,7 @@ from behaviours import BehaviourPolicies
 from cyber_rodent.profiles import HardwareProfile
 from evolution.config import EvolutionConfig
 from evolution.genome import Genome
-from evolution.lab.api import run
+from evolution.lab.api import RunOutput, RunSpec, execute
 from evolution.lab.transfer import (
     ROBOT_STATISTICS_FILE,
     TRANSFER_FILE,
@@ -31,8 +31,8 @@ SMALL = dict(population_size=8, n_robots=4, lifetime_steps=80, time_sharing_step
 def source_run(tmp_path_factory):
     """A short EE run that keeps every generation's checkpoint (generations 1-3)."""
     out = tmp_path_factory.mktemp("source")
-    run("ee", 3, 1, out_dir=out, policies=BehaviourPolicies.reactive(), keep_checkpoints=0,
-        **SMALL)  # fmt: skip
+    spec = RunSpec("ee", 3, 1, overrides=SMALL, policies=BehaviourPolicies.reactive())
+    execute(spec, RunOutput(out, keep_checkpoints=0))
     return out
 
 

@@ -62,27 +62,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from evolution.lab import experiment
+    from evolution.lab.api import RunOutput, RunSpec
 
     plugins = options.load_plugins(args)  # before the settings, which may name what they add
-    overrides = options.read_settings(args)
+    spec = RunSpec(
+        args.method,
+        args.generations,
+        args.seed,
+        overrides=options.read_settings(args),
+        policies=args.policies,
+        max_steps=args.max_steps,
+        plugins=plugins,
+    )
     out = args.out if args.out is not None else experiment.default_out_dir(args.method, args.seed)
+    output = RunOutput(
+        out,
+        checkpoint_every=args.checkpoint_every,
+        keep_checkpoints=args.keep_checkpoints,
+        tensorboard=args.tensorboard,
+        progress=not args.no_progress,
+    )
     try:
         path, table = experiment.evolve(
-            args.method,
-            args.generations,
-            args.seed,
-            out,
-            overrides=overrides,
-            policies=args.policies,
-            resume=args.resume,
-            force=args.force,
-            checkpoint_every=args.checkpoint_every,
-            keep_checkpoints=args.keep_checkpoints,
-            max_steps=args.max_steps,
-            progress=not args.no_progress,
-            argv=sys.argv,
-            tensorboard=args.tensorboard,
-            plugins=plugins,
+            spec, output, resume=args.resume, force=args.force, argv=sys.argv
         )
     except KeyboardInterrupt:
         return interrupted(out)

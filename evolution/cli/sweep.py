@@ -69,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
     from cyber_rodent.plugins import plugin_source
     from cyber_rodent.validation import check_integer
     from evolution.lab import experiment
+    from evolution.lab.api import policies_by_name
     from evolution.lab.grid import check_grid
     from evolution.lab.sweep import (
         STEP_SECONDS,
@@ -101,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         check_grid(args.out, spec.grid)
         check_sweep_plugins(args.out, spec)
     spec.check()  # every cell's settings, before anything is written
-    experiment.policies_by_name(args.policies)  # the shipped values are installed
+    policies_by_name(args.policies)  # the shipped values are installed
     if args.workers is not None:
         check_integer("--workers", args.workers, 1, 4096)
     executor = "ray" if args.ray is not None else "local"

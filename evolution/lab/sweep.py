@@ -88,14 +88,17 @@ from evolution.lab.api import (
     CHECKPOINT_DIR,
     EVENTS_FILE,
     RUN_FILE,
+    RunOutput,
+    RunSpec,
     check_plugins,
     check_run_config,
+    execute,
     extra_tables,
     learning_table,
     make_config,
+    policies_by_name,
     read_record,
     robot_table,
-    run,
     run_record,
     write_tables,
 )
@@ -106,7 +109,7 @@ from evolution.lab.monitor import (
     TensorBoardWriter,
     check_tensorboard,
 )
-from evolution.runner import EvolutionRunner, default_policies, latest_checkpoint
+from evolution.runner import EvolutionRunner, latest_checkpoint
 from evolution.runner.checkpoints import prune_checkpoints
 from evolution.runner.settings import merge
 from evolution.schemes import scheme_names
@@ -371,15 +374,13 @@ def run_one(
     ``tensorboard``: the member's TensorBoard run directory (None: no monitoring).
     ``plugins``: loaded first, from their text (checked against their hash).
     """
-    from behaviours import BehaviourPolicies
-
     loaded = tuple(source.load() for source in plugins)
-    chosen = BehaviourPolicies.reactive() if policies == "reactive" else None
-    return run(
-        method, generations, seed, out_dir=out, resume=True, policies=chosen,
-        keep_checkpoints=keep_checkpoints, max_steps=max_steps, tensorboard=tensorboard,
-        plugins=loaded, **overrides,
+    spec = RunSpec(
+        method, generations, seed, overrides=overrides, policies=policies, max_steps=max_steps,
+        plugins=loaded,
     )  # fmt: skip
+    output = RunOutput(out, keep_checkpoints=keep_checkpoints, tensorboard=tensorboard)
+    return execute(spec, output, resume=True)
 
 
 class RunChunk(NamedTuple):
@@ -443,14 +444,10 @@ def advance_run(task: RunChunk) -> ChunkResult:
         CheckpointError: the checkpoint is corrupt or belongs to another run.
         PluginError: a plugin's text does not match its hash, or it fails to load.
     """
-    from behaviours import BehaviourPolicies
-
     plugins = tuple(source.load() for source in task.plugins)  # before the config names them
     config = make_config(task.method, **task.overrides)
     check_run_config(config)
-    policies = (
-        BehaviourPolicies.reactive() if task.policies == "reactive" else default_policies()
-    )
+    policies = policies_by_name(task.policies)
     with tempfile.TemporaryDirectory(prefix="cyber-rodent-run-") as temp:
         out = Path(temp)
         checkpoints = out / CHECKPOINT_DIR
