@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from evolution.lab.api import RunOutput
 from evolution.lab.monitor import (
     SCALAR_TAGS,
     WEIGHT_HISTOGRAM_TAG,
@@ -22,7 +23,14 @@ from evolution.lab.monitor import (
     tag_of,
     weight_scalars,
 )
-from evolution.lab.sweep import KEEP_CHECKPOINTS, RunChunk, SweepSpec, advance_run, sweep
+from evolution.lab.sweep import (
+    KEEP_CHECKPOINTS,
+    Execution,
+    RunChunk,
+    SweepSpec,
+    advance_run,
+    sweep,
+)
 
 #: Two robots, four agents, short lives: a generation takes a few seconds, and with the
 #: trained behaviours and a longer mating range some agents complete the task (the batteries
@@ -165,7 +173,7 @@ def test_local_sweep_writes_one_tensorboard_run_per_run(tmp_path: Path) -> None:
     pytest.importorskip("tensorboard")
     spec = SweepSpec(("ee", "ce"), (0,), 1, TINY, policies="reactive")
     board = tmp_path / "tb"
-    results = sweep(spec, tmp_path / "sweep", workers=2, progress=False, tensorboard=board)
+    results = sweep(spec, RunOutput(tmp_path / "sweep", tensorboard=board), Execution(workers=2))
     assert sorted(p.name for p in board.iterdir()) == ["ce-seed000", "ee-seed000"]
     for member, table in results.items():
         assert_board_equals_table(board / f"{member.method}-seed{member.seed:03d}", table)
@@ -227,11 +235,9 @@ def test_ray_sweep_writes_tensorboard_from_the_driver(tmp_path: Path) -> None:
     pytest.importorskip("tensorboard")
     spec = SweepSpec(("ee",), (0, 1), 2, TINY, policies="reactive")
     board = tmp_path / "tb"
-    results = sweep(
-        spec, tmp_path / "sweep", workers=2, executor="ray", ray_address="local",
-        progress=False, tensorboard=board,
-    )  # fmt: skip
-    local = sweep(spec, tmp_path / "local", workers=2, progress=False)
+    output = RunOutput(tmp_path / "sweep", tensorboard=board)
+    results = sweep(spec, output, Execution("ray", 2, "local"))
+    local = sweep(spec, RunOutput(tmp_path / "local"), Execution(workers=2))
     assert sorted(p.name for p in board.iterdir()) == ["ee-seed000", "ee-seed001"]
     for member, table in results.items():
         pd.testing.assert_frame_equal(table, local[member])  # monitoring changes nothing

@@ -69,10 +69,11 @@ def run(args: argparse.Namespace) -> int:
     from cyber_rodent.plugins import plugin_source
     from cyber_rodent.validation import check_integer
     from evolution.lab import experiment
-    from evolution.lab.api import policies_by_name
+    from evolution.lab.api import RunOutput, policies_by_name
     from evolution.lab.grid import check_grid
     from evolution.lab.sweep import (
         STEP_SECONDS,
+        Execution,
         SweepSpec,
         check_ray_address,
         check_sweep_plugins,
@@ -124,16 +125,9 @@ def run(args: argparse.Namespace) -> int:
         f"{'; less what is already done' if args.resume else ''})",
         flush=True,
     )
+    output = RunOutput(out, tensorboard=args.tensorboard, progress=not args.no_progress)
     try:
-        results = sweep(
-            spec,
-            out,
-            workers=args.workers,
-            executor=executor,
-            ray_address=args.ray or "local",
-            progress=not args.no_progress,
-            tensorboard=args.tensorboard,
-        )
+        results = sweep(spec, output, Execution(executor, args.workers, args.ray or "local"))
     except KeyboardInterrupt:
         print(
             "cyber-rodent: interrupted; continue with the same command and --resume",

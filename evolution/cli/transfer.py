@@ -50,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     from cyber_rodent.validation import check_integer
     from cyber_rodent.world import MAX_ROBOTS
     from evolution.config import MAX_GENERATIONS, MAX_POPULATION
-    from evolution.lab.transfer import ROBOT_STATISTICS_FILE, transfer
+    from evolution.lab.api import RunOutput
+    from evolution.lab.transfer import ROBOT_STATISTICS_FILE, TransferSpec, transfer
 
     # The numbers and paths first: transfer() reads the source checkpoint before its own checks.
     check_integer("--generation", args.generation, 0, MAX_GENERATIONS)
@@ -65,19 +66,17 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"--from {source}: {what}")
     if out.exists() and not out.is_dir():
         raise CliError(f"--out {out} is a file, not a directory")
-    profile = profile_by_name(args.profile)
-    result = transfer(
+    spec = TransferSpec(
         args.source,
-        args.out,
         generation=args.generation,
         top=args.top,
         robots=args.robots,
         agents_per_robot=args.agents_per_robot,
         generations=args.generations,
-        profile=profile,
+        profile=profile_by_name(args.profile),
         seed=args.seed,
-        progress=not args.no_progress,
     )
+    result = transfer(spec, RunOutput(args.out, progress=not args.no_progress))
     table = result.per_robot
     if len(table):
         first = table[table["generation"] == table["generation"].min()]
