@@ -74,7 +74,7 @@ import tempfile
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -292,6 +292,13 @@ class SweepSpec:
         chosen = set(self.members)
         return [member for member in ordered if member in chosen]
 
+    def run_spec(self, member: SweepRun) -> RunSpec:
+        """What ``member`` runs (its plugins are loaded from :attr:`plugins` where it runs)."""
+        return RunSpec(
+            member.method, self.generations, member.seed, overrides=self.settings_of(member.cell),
+            policies=self.policies, max_steps=self.max_steps,
+        )  # fmt: skip
+
     def settings_of(self, cell: str) -> dict[str, Any]:
         """The settings of the runs in ``cell``: the sweep's overrides, then the cell's."""
 
@@ -358,36 +365,23 @@ def check_sweep_plugins(out_dir: str | os.PathLike[str], spec: SweepSpec) -> Non
 
 
 def run_one(
-    method: str,
-    seed: int,
-    generations: int,
-    out: str,
-    overrides: dict[str, Any],
-    policies: str = "trained",
-    keep_checkpoints: int = KEEP_CHECKPOINTS,
-    max_steps: int | None = None,
-    tensorboard: str | None = None,
-    plugins: tuple[PluginSource, ...] = (),
+    spec: RunSpec, output: RunOutput, plugins: tuple[PluginSource, ...] = ()
 ) -> pd.DataFrame:
-    """Run (or resume) one sweep member in its run directory; the local worker entry point.
+    """Run (or resume) one sweep member (:meth:`SweepSpec.run_spec`) in its run directory; the
+    local worker entry point.
 
-    ``tensorboard``: the member's TensorBoard run directory (None: no monitoring).
-    ``plugins``: loaded first, from their text (checked against their hash).
+    ``plugins``: loaded first, from their text (checked against their hash), and run as the
+    spec's plugins.
     """
     loaded = tuple(source.load() for source in plugins)
-    spec = RunSpec(
-        method, generations, seed, overrides=overrides, policies=policies, max_steps=max_steps,
-        plugins=loaded,
-    )  # fmt: skip
-    output = RunOutput(out, keep_checkpoints=keep_checkpoints, tensorboard=tensorboard)
-    return execute(spec, output, resume=True)
+    return execute(replace(spec, plugins=loaded), output, resume=True)
 
 
 class RunChunk(NamedTuple):
     """What a Ray task needs to advance one run: the run's identity and its newest checkpoint.
 
     Attributes:
-        method, seed, overrides, policies: the run (as :func:`run_one` takes them).
+        method, seed, overrides, policies: the run (as :meth:`SweepSpec.run_spec` has them).
         generations: the run's target.
         chunk: generations this task adds at most.
         keep_checkpoints: newest checkpoints a run directory keeps (0: all).
@@ -759,15 +753,12 @@ def _sweep_local(
             futures = {
                 pool.submit(
                     run_one,
-                    member.method,
-                    member.seed,
-                    spec.generations,
-                    str(run_dir(out, *member)),
-                    spec.settings_of(member.cell),
-                    spec.policies,
-                    keep_checkpoints,
-                    spec.max_steps,
-                    None if board is None else str(run_dir(board, *member)),
+                    spec.run_spec(member),
+                    RunOutput(
+                        str(run_dir(out, *member)),
+                        keep_checkpoints=keep_checkpoints,
+                        tensorboard=None if board is None else str(run_dir(board, *member)),
+                    ),
                     spec.plugins,
                 ): member
                 for member in todo
