@@ -192,7 +192,7 @@ def run_studies(studies: Sequence[Study], out: Path, code: Path) -> None:
     """Run (or resume) every study's sweep, one after the other, with the package in ``code``
     (training the behaviours a combination needs first); every study is checked first."""
     check_studies(studies)
-    cli = [sys.executable, "-m", "cyber_rodent.cli"]
+    cli = [sys.executable, "-m", "evolution.cli"]
     for study in studies:
         env = dict(os.environ)
         if study.behaviours is not None:

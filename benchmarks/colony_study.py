@@ -93,10 +93,12 @@ from cyber_rodent import constants as C  # noqa: E402
 from cyber_rodent.atomic import atomic_output, write_text  # noqa: E402
 from evolution.agent import Origin  # noqa: E402
 from evolution.config import EvolutionConfig  # noqa: E402
+from evolution.lab.api import RunOutput  # noqa: E402
 from evolution.lab.comparison import available_window, rank_test  # noqa: E402
 from evolution.lab.grid import Cell  # noqa: E402
 from evolution.lab.sweep import (  # noqa: E402
     STEPS_PER_LIFE,
+    Execution,
     SweepFailed,
     SweepRun,
     SweepSpec,
@@ -1325,10 +1327,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             pending = dataclasses.replace(spec, members=tuple(todo))
             try:
+                executor = "ray" if args.ray is not None else "local"
                 sweep(
-                    pending, args.out, workers=args.workers,
-                    executor="ray" if args.ray is not None else "local",
-                    ray_address=args.ray or "local", on_run_done=publish_one,
+                    pending, RunOutput(args.out, progress=True),
+                    Execution(executor, args.workers, args.ray or "local"),
+                    on_run_done=publish_one,
                 )  # fmt: skip
             except KeyboardInterrupt:
                 print(f"{PROG}: interrupted; the same command continues the study",

@@ -71,9 +71,11 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 from benchmarks.colony_study import StudyError, check_study_dir, run_finished  # noqa: E402
 from benchmarks.publish_runs import publish_run  # noqa: E402
 from cyber_rodent.atomic import atomic_output, write_text  # noqa: E402
+from evolution.lab.api import RunOutput  # noqa: E402
 from evolution.lab.comparison import rank_test  # noqa: E402
 from evolution.lab.grid import Cell  # noqa: E402
 from evolution.lab.sweep import (  # noqa: E402
+    Execution,
     SweepFailed,
     SweepRun,
     SweepSpec,
@@ -284,10 +286,10 @@ def run_study(args: argparse.Namespace, spec: SweepSpec) -> bool:
             print(f"{PROG}: could not publish {source}: {err}", file=sys.stderr)
 
     try:
+        executor = "ray" if args.ray is not None else "local"
         sweep(
-            dataclasses.replace(spec, members=tuple(todo)), args.out, workers=args.workers,
-            executor="ray" if args.ray is not None else "local",
-            ray_address=args.ray or "local", on_run_done=publish_one,
+            dataclasses.replace(spec, members=tuple(todo)), RunOutput(args.out, progress=True),
+            Execution(executor, args.workers, args.ray or "local"), on_run_done=publish_one,
         )  # fmt: skip
     except SweepFailed as err:
         print(f"{PROG}: {err}", file=sys.stderr)

@@ -149,7 +149,7 @@ def run_sweeps(workers: int) -> None:
     for name, args in sweep_commands(workers):
         out = RUNS / name
         resume = ["--resume"] if (out / "sweep.json").exists() else []
-        command = [sys.executable, "-m", "cyber_rodent.cli", *args, "--out", str(out), *resume]
+        command = [sys.executable, "-m", "evolution.cli", *args, "--out", str(out), *resume]
         print(" ".join(command[2:]), flush=True)
         subprocess.run(command, check=True)
 

@@ -61,7 +61,7 @@ TOLERANCE = 0.30
 
 def run_sweep(out: Path, workers: int) -> None:
     """Run (or resume) the full sweep with the package's CLI, exactly as a user would."""
-    command = [sys.executable, "-m", "cyber_rodent.cli", "sweep", "--methods", "ee,ce",
+    command = [sys.executable, "-m", "evolution.cli", "sweep", "--methods", "ee,ce",
                "--seeds", "0-19", "--generations", "120", "--workers", str(workers),
                "--out", str(out)]  # fmt: skip
     if (out / "sweep.json").exists():

@@ -44,13 +44,15 @@ from evolution.lab.api import (
     ROBOT_STATISTICS_FILE,
     RUN_FILE,
     STATISTICS_FILE,
+    RunOutput,
+    RunSpec,
     holds_a_run,
     make_config,
 )
 from evolution.lab.experiment import evolve, read_run_record
 from evolution.lab.figures import plot_per_robot, pool_per_robot
 from evolution.lab.sweep import parse_seeds
-from evolution.lab.transfer import TRANSFER_FILE, transfer
+from evolution.lab.transfer import TRANSFER_FILE, TransferSpec, transfer
 from evolution.runner.settings import parse_set
 
 #: The paper's transfer: the 5 fittest individuals onto 3 robots with 5 virtual agents each.
@@ -95,8 +97,8 @@ def run_source(
                              f"{record['seed']}, not the EE run of seed {seed}")  # fmt: skip
         return "reused"
     resume = holds_a_run(out)
-    evolve("ee", generations, seed, out, overrides=overrides, resume=resume,
-           keep_checkpoints=0, progress=progress)  # fmt: skip
+    spec = RunSpec("ee", generations, seed, overrides=overrides)
+    evolve(spec, RunOutput(out, keep_checkpoints=0, progress=progress), resume=resume)
     return "resumed" if resume else "evolved"
 
 
@@ -108,9 +110,10 @@ def run_transfer(
         return "reused"
     if (out / TRANSFER_FILE).exists():  # an interrupted transfer: start it again
         shutil.rmtree(out)
-    transfer(source, out, generation=source_generation, top=TOP, robots=ROBOTS,
-             agents_per_robot=AGENTS_PER_ROBOT, generations=generations,
-             profile=profile_by_name(PROFILE), seed=seed, progress=progress)  # fmt: skip
+    spec = TransferSpec(source, generation=source_generation, top=TOP, robots=ROBOTS,
+                        agents_per_robot=AGENTS_PER_ROBOT, generations=generations,
+                        profile=profile_by_name(PROFILE), seed=seed)  # fmt: skip
+    transfer(spec, RunOutput(out, progress=progress))
     return "transferred"
 
 

@@ -532,3 +532,34 @@ def annotate_world(
     anchors = renderer.project_top_down(top)
     tags = [RobotTag(f"CR{i}") for i in range(n)] if tags is None else tags
     return annotate_robots(image, anchors, poses[:, 2], tags, renderer.metres_to_px(), scale)
+
+
+def snapshot(
+    world: World, robot: int | None = None, size: int | None = None, plain: bool = False
+) -> np.ndarray:
+    """A square picture of ``world`` as it stands (nothing is stepped): the field from above
+    with robot IDs (``CRi`` for robot i) and heading arrows, or, with ``robot``, that robot's
+    chase view with a caption.
+
+    Args:
+        world: the world to draw.
+        robot: whose chase view to draw instead of the field (None: the field).
+        size: the image side in px (default: :func:`default_image_size` of the world's extent,
+            which keeps the paper field's pixels per metre in a larger one).
+        plain: the bare render: no IDs, arrows or caption, and empty space left black.
+
+    Raises:
+        ValueError: ``robot`` is not a robot of the world, or ``size`` is out of range.
+    """
+    background = None if plain else BACKGROUND_RGB
+    side = default_image_size(world.config.extent) if size is None else size
+    with FieldRenderer(world, side, side, background=background) as renderer:
+        if robot is not None:
+            image = renderer.robot_view(robot)
+            if not plain:
+                draw_caption(image, f"CR{robot} chase view")
+        else:
+            image = renderer.top_down()
+            if not plain:
+                annotate_world(image, renderer)
+    return image

@@ -19,9 +19,9 @@ from behaviours.training import (
     survival_changes,
     train,
 )
-from cyber_rodent.cli import main
 from cyber_rodent.commands import command_index
 from cyber_rodent.survival import SurvivalConfig
+from evolution.cli import main
 
 #: IR port: 11.1 cm ahead of the robot's centre, 2 cm to its right (cyber_rodent.xml).
 PORT_FORWARD = 0.111

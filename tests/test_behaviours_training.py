@@ -167,7 +167,7 @@ def test_corrupt_values_file_is_a_clear_error(tmp_path):
 # --- the command line -----------------------------------------------------------------------------
 def _cli(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "cyber_rodent.cli", "train-behaviours", *args],
+        [sys.executable, "-m", "evolution.cli", "train-behaviours", *args],
         capture_output=True,
         text=True,
         timeout=300,

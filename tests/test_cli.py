@@ -15,7 +15,7 @@ from cyber_rodent.assets import ASSETS_ENV_VAR
 
 def run_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "cyber_rodent.cli", *args],
+        [sys.executable, "-m", "evolution.cli", *args],
         capture_output=True,
         text=True,
         timeout=120,
@@ -78,7 +78,7 @@ def test_snapshot_missing_asset(tmp_path: Path) -> None:
 
 
 def test_help_shows_every_default() -> None:
-    from cyber_rodent.cli import build_parser
+    from evolution.cli import build_parser
 
     parser = build_parser()
     expected = {
@@ -98,7 +98,7 @@ def test_help_shows_every_default() -> None:
 
 def test_render_help_describes_every_option() -> None:
     """Every option of ``render`` has a help text; --fps says what plays in real time."""
-    from cyber_rodent.cli import build_parser
+    from evolution.cli import build_parser
 
     render = build_parser().commands["render"]
     bare = [a.option_strings[0] for a in render._actions if a.option_strings and not a.help]
@@ -108,7 +108,7 @@ def test_render_help_describes_every_option() -> None:
 
 
 def test_counts_read_in_the_singular_for_one() -> None:
-    from cyber_rodent.cli import _count
+    from evolution.cli.evolve import _count
 
     assert _count(1, "generation") == "1 generation"
     assert _count(0, "generation") == "0 generations"

@@ -1,6 +1,6 @@
 """Bad input never half-fails: exit status 2, one line on stderr, no traceback, nothing written.
 
-Every case runs the command line in-process (``cyber_rodent.cli.main``) inside a directory tree
+Every case runs the command line in-process (``evolution.cli.main``) inside a directory tree
 of prepared inputs (a plain file, an empty directory, someone's notes, a run stopped while
 starting, a sweep, run directories that cannot be continued, malformed config files), and the
 tree (the working directory included, where default output directories go) must be
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from cyber_rodent.cli import main
+from evolution.cli import main
 
 #: Placeholders of the prepared inputs (see :func:`inputs`), written ``{name}`` in a case.
 HUGE = "1000000000000000000000000000000"
@@ -375,7 +375,7 @@ def test_bad_input_as_a_process(command: str, index: int, prepared: dict[str, st
     argv, fragment = _argv(command, index, prepared)
     before = tree(root)
     result = subprocess.run(
-        [sys.executable, "-m", "cyber_rodent.cli", *argv],
+        [sys.executable, "-m", "evolution.cli", *argv],
         capture_output=True,
         text=True,
         timeout=120,

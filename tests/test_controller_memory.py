@@ -15,8 +15,8 @@ import pytest
 
 from behaviours import BehaviourPolicies
 from behaviours.kernels import BehaviourInputs, InputBuffers
-from cyber_rodent.cli import main as cli_main
 from cyber_rodent.world import WorldConfig
+from evolution.cli import main as cli_main
 from evolution.config import GENOME_LENGTH, CtrnnConfig, EvolutionConfig
 from evolution.controller import NeuralController
 from evolution.controller_kernels import decide_ctrnn, decide_ctrnn_reference
@@ -405,10 +405,12 @@ def test_a_ctrnn_run_from_the_command_line_resumes_byte_identically(tmp_path: Pa
     record = json.loads((straight / "run.json").read_text())
     assert record["config"]["evolution"]["controller"] == "ctrnn"
 
-    from evolution.lab.transfer import transfer
+    from evolution.lab.api import RunOutput
+    from evolution.lab.transfer import TransferSpec, transfer
 
-    result = transfer(straight, tmp_path / "hw", generation=2, top=2, robots=2,
-                      agents_per_robot=2, generations=1, max_steps=30)  # fmt: skip
+    spec = TransferSpec(straight, generation=2, top=2, robots=2, agents_per_robot=2,
+                        generations=1, max_steps=30)  # fmt: skip
+    result = transfer(spec, RunOutput(tmp_path / "hw"))
     length = resolve(dataclasses.replace(CTRNN_TINY)).length
     assert all(i.genome.layout.controller_genes == length for i in result.individuals)
 

@@ -24,7 +24,6 @@ import pytest
 
 from behaviours import BehaviourPolicies
 from cyber_rodent.atomic import TEMP_MARK, remove_stale_temporaries
-from cyber_rodent.cli import main as cli_main
 from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.world import WorldConfig
 from evolution.agent import GenomePool, MatingRecord, Origin, VirtualAgent, genomes_from_array
@@ -38,6 +37,7 @@ from evolution.checkpoint import (
     read_header,
     save_checkpoint,
 )
+from evolution.cli import main as cli_main
 from evolution.config import EvolutionConfig, GeneticConfig
 from evolution.genome import Genome
 from evolution.runner import EventLog, EvolutionRunner, policy_identity

@@ -16,9 +16,9 @@ import pytest
 from behaviours import BehaviourPolicies
 from behaviours.kernels import BehaviourInputs, InputBuffers
 from cyber_rodent.backend import jit_built, with_callees
-from cyber_rodent.cli import main as cli_main
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 from evolution.checkpoint import CheckpointError
+from evolution.cli import main as cli_main
 from evolution.config import GENOME_LENGTH, EvolutionConfig, GeneticConfig
 from evolution.controller import NeuralController
 from evolution.controller_kernels import decide_mlp, decide_mlp_reference
@@ -318,11 +318,13 @@ def test_deploy_refuses_the_mlp_controller_in_one_line(mlp_run, tmp_path, capsys
 
 
 def test_transfer_carries_the_controller(mlp_run, tmp_path) -> None:
-    from evolution.lab.transfer import transfer
+    from evolution.lab.api import RunOutput
+    from evolution.lab.transfer import TransferSpec, transfer
 
     out, _ = mlp_run
-    result = transfer(out, tmp_path / "hw", generation=1, top=2, robots=2, agents_per_robot=2,
-                      generations=1, max_steps=30)  # fmt: skip
+    spec = TransferSpec(out, generation=1, top=2, robots=2, agents_per_robot=2, generations=1,
+                        max_steps=30)  # fmt: skip
+    result = transfer(spec, RunOutput(tmp_path / "hw"))
     assert all(i.genome.layout.controller_genes == 126 for i in result.individuals)
     record = json.loads((tmp_path / "hw" / "run.json").read_text())
     assert record["config"]["evolution"]["controller"] == "mlp"

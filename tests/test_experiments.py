@@ -15,7 +15,8 @@ import imageio.v3 as iio
 import pandas as pd
 import pytest
 
-from evolution.lab.sweep import SweepSpec, load_sweep, parse_seeds, run_dir, sweep
+from evolution.lab.api import RunOutput
+from evolution.lab.sweep import Execution, SweepSpec, load_sweep, parse_seeds, run_dir, sweep
 
 #: A tiny world and population: two robots, four agents, short lives, so a generation takes
 #: a few seconds.
@@ -30,7 +31,7 @@ TINY_OVERRIDES = {
 
 def cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "cyber_rodent.cli", *args],
+        [sys.executable, "-m", "evolution.cli", *args],
         capture_output=True,
         text=True,
         timeout=timeout,
@@ -112,7 +113,7 @@ def test_kill_mid_run_then_resume_is_identical(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "cyber_rodent.cli",
+            "evolution.cli",
             "evolve",
             "--generations",
             "3",
@@ -164,7 +165,7 @@ def _serial(tmp_path: Path, spec: SweepSpec) -> dict:
 
 def test_local_sweep_equals_serial_runs(tmp_path: Path) -> None:
     spec = SweepSpec(("ee", "ce"), (0, 1), 1, TINY_OVERRIDES, policies="reactive")
-    results = sweep(spec, tmp_path / "sweep", workers=2, progress=False)
+    results = sweep(spec, RunOutput(tmp_path / "sweep"), Execution(workers=2))
     serial = _serial(tmp_path, spec)
     for key in spec.runs:
         pd.testing.assert_frame_equal(results[key], serial[key])
@@ -177,9 +178,7 @@ def test_local_sweep_equals_serial_runs(tmp_path: Path) -> None:
 def test_ray_sweep_equals_serial_runs(tmp_path: Path) -> None:
     pytest.importorskip("ray")
     spec = SweepSpec(("ee",), (0, 1), 1, TINY_OVERRIDES, policies="reactive")
-    results = sweep(
-        spec, tmp_path / "sweep", workers=2, executor="ray", ray_address="local", progress=False
-    )
+    results = sweep(spec, RunOutput(tmp_path / "sweep"), Execution("ray", 2, "local"))
     serial = _serial(tmp_path, spec)
     for key in spec.runs:
         pd.testing.assert_frame_equal(results[key], serial[key])

@@ -38,7 +38,7 @@ def test_every_python_block_runs(index: int) -> None:
 def test_the_colony_command_runs(tmp_path: Path) -> None:
     """Example 4's command, made short: the same settings with 2 agents per robot and short
     lives, so one generation takes seconds."""
-    from cyber_rodent.cli import main
+    from evolution.cli import main
 
     (command,) = _blocks("bash")
     args = command.split()[1:]

@@ -9,9 +9,11 @@ import api`` one to ``evolution.lab.api``.
 The rules (docs/design.md §2):
 
 - no cycle of modules importing each other;
-- ``evolution → behaviours → cyber_rodent``: ``cyber_rodent`` never imports the other two except
-  in its command line (``cyber_rodent.cli``), and ``behaviours`` never imports ``evolution``;
-- evolution's science core never imports its experiment tooling, ``evolution.lab``.
+- ``evolution → behaviours → cyber_rodent``: ``cyber_rodent`` never imports the other two, and
+  ``behaviours`` never imports ``evolution``;
+- evolution's science core never imports its experiment tooling, ``evolution.lab``;
+- the command line, ``evolution.cli``, is the top floor: it may import all of them, and nothing
+  outside it imports it.
 """
 
 from __future__ import annotations
@@ -135,6 +137,10 @@ def _top(module: str) -> str:
     return module.split(".")[0]
 
 
+def _in_cli(module: str) -> bool:
+    return module == "evolution.cli" or module.startswith("evolution.cli.")
+
+
 def test_the_checker_finds_a_cycle_and_a_function_level_import(tmp_path: Path) -> None:
     """The checker itself: a cycle closed by an import inside a function is found."""
     graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
@@ -167,12 +173,48 @@ def test_imports_run_one_way() -> None:
     wrong = []
     for module, targets in import_graph().items():
         for target in targets:
-            upward = order[_top(target)] > order[_top(module)] and module != "cyber_rodent.cli"
+            upward = order[_top(target)] > order[_top(module)]
             into_lab = (
                 target.startswith("evolution.lab")
                 and _top(module) == "evolution"
                 and not module.startswith("evolution.lab")
+                and not _in_cli(module)
             )
             if upward or into_lab:
                 wrong.append(f"{module} -> {target}")
+    assert wrong == []
+
+
+def test_lower_packages_never_import_upper_ones() -> None:
+    """Not even a command line of its own: ``cyber_rodent`` imports neither ``behaviours`` nor
+    ``evolution``, and ``behaviours`` does not import ``evolution``."""
+    above = {"cyber_rodent": {"behaviours", "evolution"}, "behaviours": {"evolution"}}
+    graph = import_graph()
+    assert any(_top(module) == "cyber_rodent" for module in graph)
+    for package, upper in above.items():
+        wrong = [
+            f"{module} -> {target}"
+            for module, targets in graph.items()
+            if _top(module) == package
+            for target in targets
+            if _top(target) in upper
+        ]
+        assert wrong == [], f"{package} imports a package above it"
+
+
+def test_the_command_line_is_the_top_floor() -> None:
+    """``evolution.cli`` ties the three packages together, and none of them imports it."""
+    graph = import_graph()
+    assert {_top(t) for m, ts in graph.items() if _in_cli(m) for t in ts} == {
+        "cyber_rodent",
+        "behaviours",
+        "evolution",
+    }
+    wrong = [
+        f"{module} -> {target}"
+        for module, targets in graph.items()
+        if not _in_cli(module)
+        for target in targets
+        if _in_cli(target)
+    ]
     assert wrong == []

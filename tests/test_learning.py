@@ -606,7 +606,7 @@ def test_deploy_refuses_a_learning_run(tmp_path: Path, capsys: pytest.CaptureFix
     """A bundle carries genomes and the shipped behaviours, not an agent's learned values."""
     import json
 
-    from cyber_rodent.cli import main
+    from evolution.cli import main
 
     run = tmp_path / "run"
     run.mkdir()
@@ -629,7 +629,7 @@ def test_shipped_values_missing_or_corrupt_is_one_line(
     import shutil
 
     from behaviours.definitions import VALUES_DIR_ENV_VAR, default_values_dir
-    from cyber_rodent.cli import main
+    from evolution.cli import main
 
     values = tmp_path / "values"
     values.mkdir()

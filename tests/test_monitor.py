@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from evolution.lab.api import RunOutput
 from evolution.lab.monitor import (
     SCALAR_TAGS,
     WEIGHT_HISTOGRAM_TAG,
@@ -22,7 +23,14 @@ from evolution.lab.monitor import (
     tag_of,
     weight_scalars,
 )
-from evolution.lab.sweep import KEEP_CHECKPOINTS, RunChunk, SweepSpec, advance_run, sweep
+from evolution.lab.sweep import (
+    KEEP_CHECKPOINTS,
+    Execution,
+    RunChunk,
+    SweepSpec,
+    advance_run,
+    sweep,
+)
 
 #: Two robots, four agents, short lives: a generation takes a few seconds, and with the
 #: trained behaviours and a longer mating range some agents complete the task (the batteries
@@ -45,7 +53,7 @@ def cli(*args: str, block_tensorboard: bool = False) -> subprocess.CompletedProc
     """The command line in a subprocess; with ``block_tensorboard`` as if the package were not
     installed (its import fails)."""
     block = "sys.modules['tensorboard'] = None; " if block_tensorboard else ""
-    code = f"import sys; {block}from cyber_rodent.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = f"import sys; {block}from evolution.cli import main; sys.exit(main(sys.argv[1:]))"
     return subprocess.run(
         [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=600,
         env={**os.environ, "LP_NUM_THREADS": "1"},
@@ -128,23 +136,23 @@ def test_evolve_tensorboard_equals_statistics_and_changes_nothing(tmp_path: Path
 
 def test_resume_continues_without_repeating_a_generation(tmp_path: Path) -> None:
     pytest.importorskip("tensorboard")
-    from behaviours import BehaviourPolicies
-    from evolution.lab.api import run
+    from evolution.lab.api import RunOutput, RunSpec, execute
 
-    reactive = BehaviourPolicies.reactive()
     out, board = tmp_path / "run", tmp_path / "tb"
     # A checkpoint every 2 generations: the third is written to TensorBoard but not
     # checkpointed, so the resumed run closes it again.
-    first = run(
-        "ee", 3, 0, out_dir=out, policies=reactive, checkpoint_every=2, tensorboard=board,
-        **TINY,
-    )  # fmt: skip
+    first = execute(
+        RunSpec("ee", 3, 0, overrides=TINY, policies="reactive"),
+        RunOutput(out, checkpoint_every=2, tensorboard=board),
+    )
     assert len(first) == 3 and sorted(p.name for p in (out / "checkpoints").iterdir()) == [
         "gen_00002.ckpt"
     ]
     assert [e.step for e in read_board(board).Scalars("agents/deaths")] == [0, 1, 2]
-    table = run(
-        "ee", 4, 0, out_dir=out, policies=reactive, resume=True, tensorboard=board, **TINY
+    table = execute(
+        RunSpec("ee", 4, 0, overrides=TINY, policies="reactive"),
+        RunOutput(out, tensorboard=board),
+        resume=True,
     )
     assert len(list(board.glob("events.out.tfevents.*"))) == 2  # a new file for the resumed run
     pd.testing.assert_frame_equal(table, pd.read_csv(out / "statistics.csv"))
@@ -153,12 +161,11 @@ def test_resume_continues_without_repeating_a_generation(tmp_path: Path) -> None
 
 def test_tensorboard_without_out_dir(tmp_path: Path) -> None:
     pytest.importorskip("tensorboard")
-    from behaviours import BehaviourPolicies
-    from evolution.lab.api import run
+    from evolution.lab.api import RunOutput, RunSpec, execute, run
 
-    reactive = BehaviourPolicies.reactive()
-    table = run("ce", 2, 0, policies=reactive, tensorboard=tmp_path / "tb", **TINY)
-    pd.testing.assert_frame_equal(table, run("ce", 2, 0, policies=reactive, **TINY))
+    spec = RunSpec("ce", 2, 0, overrides=TINY, policies="reactive")
+    table = execute(spec, RunOutput(tensorboard=tmp_path / "tb"))
+    pd.testing.assert_frame_equal(table, run("ce", 2, 0, policies="reactive", **TINY))
     assert_board_equals_table(tmp_path / "tb", table)
 
 
@@ -166,7 +173,7 @@ def test_local_sweep_writes_one_tensorboard_run_per_run(tmp_path: Path) -> None:
     pytest.importorskip("tensorboard")
     spec = SweepSpec(("ee", "ce"), (0,), 1, TINY, policies="reactive")
     board = tmp_path / "tb"
-    results = sweep(spec, tmp_path / "sweep", workers=2, progress=False, tensorboard=board)
+    results = sweep(spec, RunOutput(tmp_path / "sweep", tensorboard=board), Execution(workers=2))
     assert sorted(p.name for p in board.iterdir()) == ["ce-seed000", "ee-seed000"]
     for member, table in results.items():
         assert_board_equals_table(board / f"{member.method}-seed{member.seed:03d}", table)
@@ -228,11 +235,9 @@ def test_ray_sweep_writes_tensorboard_from_the_driver(tmp_path: Path) -> None:
     pytest.importorskip("tensorboard")
     spec = SweepSpec(("ee",), (0, 1), 2, TINY, policies="reactive")
     board = tmp_path / "tb"
-    results = sweep(
-        spec, tmp_path / "sweep", workers=2, executor="ray", ray_address="local",
-        progress=False, tensorboard=board,
-    )  # fmt: skip
-    local = sweep(spec, tmp_path / "local", workers=2, progress=False)
+    output = RunOutput(tmp_path / "sweep", tensorboard=board)
+    results = sweep(spec, output, Execution("ray", 2, "local"))
+    local = sweep(spec, RunOutput(tmp_path / "local"), Execution(workers=2))
     assert sorted(p.name for p in board.iterdir()) == ["ee-seed000", "ee-seed001"]
     for member, table in results.items():
         pd.testing.assert_frame_equal(table, local[member])  # monitoring changes nothing

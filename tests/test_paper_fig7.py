@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 
 from benchmarks.paper_fig7 import main, summarise
+from evolution.lab.api import RunOutput, RunSpec
 from evolution.lab.experiment import evolve
 
 #: A tiny source colony: 2 robots x 5 agents, 40-step lifetimes.
@@ -82,8 +83,8 @@ def test_resumes_an_unfinished_source_to_the_same_result(
     finished: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     overrides = dict(item.split("=") for item in SMALL)
-    evolve("ee", 1, 0, tmp_path / "runs" / "source", keep_checkpoints=0, progress=False,
-           overrides={k: int(v) for k, v in overrides.items()})  # fmt: skip
+    spec = RunSpec("ee", 1, 0, overrides={k: int(v) for k, v in overrides.items()})
+    evolve(spec, RunOutput(tmp_path / "runs" / "source", keep_checkpoints=0))
     assert main(argv(tmp_path, seeds="0")) == 0
     assert "source (2 generations): resumed" in capsys.readouterr().out
     for name in ("source/statistics.csv", "transfer-seed0/statistics_per_robot.csv"):

@@ -27,7 +27,6 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from cyber_rodent.cli import main
 from cyber_rodent.plugins import (
     MODULE_PREFIX,
     Plugin,
@@ -41,6 +40,7 @@ from cyber_rodent.plugins import (
     plugin_source,
     plugins_from_records,
 )
+from evolution.cli import main
 
 #: docs/extending.md §1's controller as a plugin file: three preference genes after the paper's
 #: recharge block.
@@ -129,7 +129,7 @@ def sha256_of(path: Path) -> str:
 def cli(*args: str) -> subprocess.CompletedProcess:
     """The command line in a process of its own (a fresh process loads the plugin anew)."""
     return subprocess.run(
-        [sys.executable, "-m", "cyber_rodent.cli", *args],
+        [sys.executable, "-m", "evolution.cli", *args],
         capture_output=True, text=True, timeout=600,
         env={**os.environ, "LP_NUM_THREADS": "1"},
     )  # fmt: skip
@@ -374,14 +374,15 @@ def test_evolve_records_its_plugins_and_resume_checks_them(
 
 def test_sweep_workers_load_the_plugin_from_its_text(tmp_path: Path) -> None:
     """Local workers get the plugin's text, not its path: the file is gone before they start."""
-    from evolution.lab.sweep import SweepSpec, run_dir, sweep
+    from evolution.lab.api import RunOutput
+    from evolution.lab.sweep import Execution, SweepSpec, run_dir, sweep
 
     path = write_plugin(tmp_path / "preference.py")
     source = plugin_source(load_plugin(str(path)))
     path.unlink()
     spec = SweepSpec(("ee",), (0, 1), 1, TINY_OVERRIDES, policies="reactive", plugins=(source,))
     out = tmp_path / "sweep"
-    sweep(spec, out, workers=2, progress=False)
+    sweep(spec, RunOutput(out), Execution(workers=2))
     for member in spec.runs:
         record = json.loads((run_dir(out, *member) / "run.json").read_text())
         assert record["plugins"] == [source.plugin.record()]
@@ -478,7 +479,8 @@ def test_a_ray_sweep_over_the_plugins_controller_needs_no_file_of_it(
 ) -> None:
     """Ray workers get the plugin's text: the file is gone before the sweep starts."""
     pytest.importorskip("ray")
-    from evolution.lab.sweep import SweepSpec, sweep
+    from evolution.lab.api import RunOutput
+    from evolution.lab.sweep import Execution, SweepSpec, sweep
 
     original, one = one_worker_sweep
     path = write_plugin(tmp_path / "preference.py")
@@ -487,7 +489,7 @@ def test_a_ray_sweep_over_the_plugins_controller_needs_no_file_of_it(
     overrides = {**TINY_OVERRIDES, "evolution.controller": "preference"}
     spec = SweepSpec(("ee",), (0, 1), 1, overrides, policies="reactive", plugins=(source,))
     out = tmp_path / "ray"
-    sweep(spec, out, workers=2, executor="ray", ray_address="local", progress=False)
+    sweep(spec, RunOutput(out), Execution("ray", 2, "local"))
     assert results(out) == results(one)
     record = json.loads((out / "ee-seed000" / "run.json").read_text())
     assert record["plugins"] == [source.plugin.record()]

@@ -417,7 +417,7 @@ def _cluster(tmp_path: Path, network: list[str]) -> Iterator[Cluster]:
 def test_sweep_on_two_nodes_survives_losing_one(tmp_path: Path, cluster: Cluster) -> None:
     out = cluster.driver / "ray"
     command = [
-        *cluster.network, sys.executable, "-m", "cyber_rodent.cli", *SWEEP, "--ray",
+        *cluster.network, sys.executable, "-m", "evolution.cli", *SWEEP, "--ray",
         cluster.address,
     ]  # fmt: skip
     say(f"driver: {' '.join(command[len(cluster.network) + 2 :])} --out {out}")
@@ -464,7 +464,7 @@ def test_sweep_on_two_nodes_survives_losing_one(tmp_path: Path, cluster: Cluster
 
     reference = cluster.driver / "local"
     r = subprocess.run(
-        [sys.executable, "-m", "cyber_rodent.cli", *SWEEP, "--workers", "2", "--out",
+        [sys.executable, "-m", "evolution.cli", *SWEEP, "--workers", "2", "--out",
          str(reference)],
         env=cluster.env, capture_output=True, text=True, timeout=600,
     )  # fmt: skip

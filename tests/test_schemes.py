@@ -274,7 +274,7 @@ def test_the_paper_schemes_are_untouched_by_the_new_settings() -> None:
 def test_a_sweep_of_the_new_schemes_is_the_same_on_one_and_two_workers(tmp_path: Path) -> None:
     """mEDEA and EE with one colony-wide spare list, 8 robots, one generation each: the same
     files from one worker and from two, and a bad scheme is refused in one line."""
-    from cyber_rodent.cli import main
+    from evolution.cli import main
 
     common = ["--seeds", "0-1", "--generations", "1", "--no-progress",
               "--set", "evolution.n_robots=8", "--set", "world.field_size=3.3",
@@ -299,7 +299,7 @@ def test_a_sweep_of_the_new_schemes_is_the_same_on_one_and_two_workers(tmp_path:
 
 
 def test_a_bad_scheme_is_refused_in_one_line(tmp_path: Path, capsys) -> None:
-    from cyber_rodent.cli import main
+    from evolution.cli import main
 
     assert main(["evolve", "--method", "nope", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err

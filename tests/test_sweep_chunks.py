@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from evolution.checkpoint import CheckpointError
+from evolution.lab.api import RunOutput, RunSpec
 from evolution.lab.sweep import KEEP_CHECKPOINTS, RunChunk, advance_run, run_one
 
 #: Two robots, four agents, short lives: a generation takes a fraction of a second.
@@ -27,7 +28,8 @@ def files_of(directory: Path) -> dict[str, bytes]:
 
 def test_chunks_give_the_files_of_an_uninterrupted_run(tmp_path: Path) -> None:
     whole = tmp_path / "whole"
-    table = run_one("ee", 0, GENERATIONS, str(whole), TINY, "reactive")
+    table = run_one(RunSpec("ee", GENERATIONS, 0, overrides=TINY, policies="reactive"),
+                    RunOutput(str(whole)))  # fmt: skip
 
     held: dict[str, bytes] = {}  # the driver's copy of the run directory
     checkpoint: tuple[str, bytes] | None = None
@@ -69,7 +71,8 @@ def test_a_step_budget_ends_a_run_in_chunks_as_in_one_process(tmp_path: Path) ->
     steps here): locally and in chunks it stops at step 150 with the same files, and the
     chunk that spends the budget reports the run finished."""
     whole = tmp_path / "whole"
-    run_one("ee", 0, GENERATIONS, str(whole), TINY, "reactive", max_steps=150)
+    spec = RunSpec("ee", GENERATIONS, 0, overrides=TINY, policies="reactive", max_steps=150)
+    run_one(spec, RunOutput(str(whole)))
     record = (whole / "run.json").read_text()
     assert '"max_steps": 150' in record and '"control_steps": 150' in record
     held: dict[str, bytes] = {}

@@ -12,10 +12,11 @@ from behaviours import BehaviourPolicies
 from cyber_rodent.profiles import HardwareProfile
 from evolution.config import EvolutionConfig
 from evolution.genome import Genome
-from evolution.lab.api import run
+from evolution.lab.api import RunOutput, RunSpec, execute
 from evolution.lab.transfer import (
     ROBOT_STATISTICS_FILE,
     TRANSFER_FILE,
+    TransferSpec,
     checkpoint_of_generation,
     fittest_individuals,
     hardware_run_config,
@@ -31,8 +32,8 @@ SMALL = dict(population_size=8, n_robots=4, lifetime_steps=80, time_sharing_step
 def source_run(tmp_path_factory):
     """A short EE run that keeps every generation's checkpoint (generations 1-3)."""
     out = tmp_path_factory.mktemp("source")
-    run("ee", 3, 1, out_dir=out, policies=BehaviourPolicies.reactive(), keep_checkpoints=0,
-        **SMALL)  # fmt: skip
+    spec = RunSpec("ee", 3, 1, overrides=SMALL, policies=BehaviourPolicies.reactive())
+    execute(spec, RunOutput(out, keep_checkpoints=0))
     return out
 
 
@@ -40,12 +41,12 @@ def test_missing_generation_fails_with_a_clear_message(source_run, tmp_path) -> 
     with pytest.raises(
         ValueError, match=r"has no checkpoint of generation 40 \(available: 1, 2, 3\)"
     ):
-        transfer(source_run, tmp_path / "out", generation=40)
+        transfer(TransferSpec(source_run, generation=40), RunOutput(tmp_path / "out"))
     assert not (tmp_path / "out").exists()  # nothing written
     with pytest.raises(ValueError, match=r"--keep-checkpoints 0"):
         checkpoint_of_generation(source_run, 7)
     with pytest.raises(ValueError, match=r"is not a run directory"):
-        transfer(tmp_path, tmp_path / "out2", generation=1)
+        transfer(TransferSpec(tmp_path, generation=1), RunOutput(tmp_path / "out2"))
 
 
 def test_fittest_individuals_rank_mated_agents_first() -> None:
@@ -121,10 +122,11 @@ def test_hardware_run_config_is_consistent() -> None:
 
 def test_transfer_seeds_the_new_colony_and_writes_fig7(source_run, tmp_path) -> None:
     out = tmp_path / "hw"
-    result = transfer(
-        source_run, out, generation=2, top=3, robots=3, agents_per_robot=2, generations=2,
+    spec = TransferSpec(
+        source_run, generation=2, top=3, robots=3, agents_per_robot=2, generations=2,
         profile=HardwareProfile(), seed=0,
     )  # fmt: skip
+    result = transfer(spec, RunOutput(out))
     meta = json.loads((out / TRANSFER_FILE).read_text())
     assert meta["source_generation"] == 2 and len(meta["individuals"]) == 3
     # The checkpoint of generation 2 is written when generation index 1 closes: its lives.
@@ -147,15 +149,17 @@ def test_transfer_seeds_the_new_colony_and_writes_fig7(source_run, tmp_path) -> 
     assert record["config"]["evolution"]["population_size"] == 6
     np.testing.assert_array_equal(result.individuals[0].genome.weights, first[0])
     with pytest.raises(ValueError, match=r"already holds a run"):
-        transfer(source_run, out, generation=2, top=3, robots=3, agents_per_robot=2,
-                 generations=1)  # fmt: skip
+        again = TransferSpec(source_run, generation=2, top=3, robots=3, agents_per_robot=2,
+                             generations=1)  # fmt: skip
+        transfer(again, RunOutput(out))
 
 
 def test_transfer_is_deterministic(source_run, tmp_path) -> None:
     kwargs = dict(generation=3, top=2, robots=3, agents_per_robot=2, generations=1,
                   profile=HardwareProfile(), seed=4)  # fmt: skip
-    a = transfer(source_run, tmp_path / "a", **kwargs)
-    b = transfer(source_run, tmp_path / "b", **kwargs)
+    spec = TransferSpec(source_run, **kwargs)
+    a = transfer(spec, RunOutput(tmp_path / "a"))
+    b = transfer(spec, RunOutput(tmp_path / "b"))
     pd.testing.assert_frame_equal(a.per_robot, b.per_robot)
     assert (tmp_path / "a" / "events.csv").read_text() == (
         tmp_path / "b" / "events.csv"
@@ -163,7 +167,7 @@ def test_transfer_is_deterministic(source_run, tmp_path) -> None:
 
 
 def test_cli_transfer_reports_a_missing_generation_in_one_line(source_run, tmp_path, capsys):
-    from cyber_rodent.cli import main
+    from evolution.cli import main
 
     code = main(["transfer", "--from", str(source_run), "--generation", "40",
                  "--out", str(tmp_path / "t")])  # fmt: skip

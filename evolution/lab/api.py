@@ -6,9 +6,19 @@
     table = run(method="ee", generations=5, seed=0)  # a DataFrame, one row per generation
     table = run(method="ce", generations=5, seed=0, out_dir="runs/ce0", population_size=20)
 
-``run`` builds a :class:`~evolution.runner.RunConfig` from the paper's defaults plus any
-overrides, runs :class:`~evolution.runner.EvolutionRunner` and returns its per-generation
-statistics. With ``out_dir`` it also writes, atomically:
+A run is two objects: :class:`RunSpec`, what it runs (the method, generations, seed, the
+config and its overrides, the behaviours, a step budget, the plugins), and :class:`RunOutput`,
+where its results go (the run directory, the checkpoint cadence and how many to keep,
+TensorBoard, a progress bar). :func:`execute` runs a spec into an output; :func:`run` is the
+short form above, which builds them::
+
+    from evolution.lab.api import RunOutput, RunSpec, execute
+    spec = RunSpec("ce", 5, seed=0, overrides={"population_size": 20}, max_steps=50_000)
+    table = execute(spec, RunOutput("runs/ce0", keep_checkpoints=0, progress=True))
+
+:func:`execute` builds a :class:`~evolution.runner.RunConfig` from the paper's defaults plus
+any overrides, runs :class:`~evolution.runner.EvolutionRunner` and returns its per-generation
+statistics. With an output directory it also writes, atomically:
 
 - ``statistics.csv``: the table (after every checkpoint and at the end);
 - ``statistics_per_robot.csv``: per generation and robot, mean batteries over the robot's full
@@ -22,19 +32,27 @@ statistics. With ``out_dir`` it also writes, atomically:
 - ``run.json``: config, seed, behaviour policies, versions and headline numbers;
 - ``checkpoints/gen_NNNNN.ckpt``: the complete state every ``checkpoint_every`` generations.
 
-``tensorboard=DIR`` also writes each generation's statistics and the population's weights into
-TensorBoard event files in ``DIR`` as the generation closes (:mod:`evolution.lab.monitor`; the
-extra ``monitor``), with or without ``out_dir``; the results are the same either way.
+``RunOutput(tensorboard=DIR)`` also writes each generation's statistics and the population's
+weights into TensorBoard event files in ``DIR`` as the generation closes
+(:mod:`evolution.lab.monitor`; the extra ``monitor``), with or without a directory; the results
+are the same either way.
 
-``resume=True`` continues from the newest checkpoint in ``out_dir`` (the run's config, seed and
-behaviour policies must match, else a :class:`~evolution.checkpoint.CheckpointError` and nothing
-is touched); the result is bit-identical to an uninterrupted run. Without ``resume`` an
-``out_dir`` that already holds a run is refused, so results are never overwritten by accident.
+``resume=True`` continues from the newest checkpoint in the output directory (the run's config,
+seed and behaviour policies must match, else a :class:`~evolution.checkpoint.CheckpointError`
+and nothing is touched); the result is bit-identical to an uninterrupted run. Without
+``resume`` a directory that already holds a run is refused, so results are never overwritten
+by accident.
 
-``plugins=(...)`` names the plugins (:mod:`cyber_rodent.plugins`) whose code the run uses (a
-controller, an input, a task they register): they are loaded first where this process has not
-loaded them yet, and ``run.json`` records each one's name, kind and content hash (runs without
-plugins keep the record they always had). A run is continued only with the plugins it records.
+``RunSpec(plugins=(...))`` names the plugins (:mod:`cyber_rodent.plugins`) whose code the run
+uses (a controller, an input, a task they register): they are loaded first where this process
+has not loaded them yet, and ``run.json`` records each one's name, kind and content hash (runs
+without plugins keep the record they always had). A run is continued only with the plugins it
+records.
+
+The spec and the output are bundles of arguments, checked by the function that receives them
+(:func:`execute` here, :func:`evolution.lab.experiment.evolve` with the command line's names
+and bounds), not configs: a method can be checked only once the plugins that register it are
+loaded.
 """
 
 from __future__ import annotations
@@ -46,6 +64,7 @@ import json
 import os
 import subprocess
 from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -87,6 +106,73 @@ EVENTS_FILE = "events.csv"
 LEARNING_FILE = "learning.csv"
 RUN_FILE = "run.json"
 CHECKPOINT_DIR = "checkpoints"
+#: The basic behaviours by name: the shipped trained values, the hand-written baseline.
+POLICY_NAMES = ("trained", "reactive")
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """What one run runs: its scheme, length and seed, its settings, the behaviours under its
+    controllers, a step budget and the plugins whose code it uses."""
+
+    method: str = "ee"
+    """the evolution scheme: ``"ee"`` (embodied evolution), ``"ce"`` (the centralised GA),
+    ``"medea"`` or one registered (:mod:`evolution.schemes`)"""
+    generations: int = 120
+    """generations to complete (the paper: 120)"""
+    seed: int = 0
+    """the run's seed; the same seed, config and policies give identical results"""
+    config: RunConfig | EvolutionConfig | None = None
+    """the base configuration (None: the paper's, Tables 1 and 2)"""
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    """settings over ``config`` by dotted key (``{"survival.mate_distance": 0.4}``) or by the
+    flat names of earlier versions (``{"population_size": 20}``); see :func:`make_config`"""
+    policies: BehaviourPolicies | str = "trained"
+    """the basic behaviours: ``"trained"`` (the shipped values), ``"reactive"`` (the
+    hand-written baseline) or the policies themselves"""
+    max_steps: int | None = None
+    """stop after this many world control steps in all, even if the generations are not
+    complete (None: no budget)"""
+    plugins: Sequence[Plugin] = ()
+    """the plugins the run uses: loaded first where they are not yet (so ``overrides`` may
+    name what they register) and recorded in ``run.json``; to continue a run, those its
+    record names"""
+
+
+@dataclass(frozen=True)
+class RunOutput:
+    """Where a run's results go, which of its checkpoints are kept, and what is shown while
+    it runs."""
+
+    directory: str | os.PathLike[str] | None = None
+    """the run directory: ``statistics.csv``, ``events.csv``, ``run.json`` and checkpoints
+    (None: everything stays in memory, without checkpoints)"""
+    checkpoint_every: int = 1
+    """generations between checkpoints"""
+    keep_checkpoints: int = 3
+    """newest checkpoints to keep (0: every one)"""
+    tensorboard: str | os.PathLike[str] | None = None
+    """a TensorBoard directory, written as each generation closes (:mod:`evolution.lab.monitor`;
+    needs the extra ``monitor``; checked before anything is created; a resumed run starts a
+    new event file, each generation appearing once): :func:`execute` writes into it,
+    ``evolve`` and ``resume`` into ``DIR/<name of the run directory>``, a sweep into
+    ``DIR/<method>-seed<NNN>``, so that runs sharing it are overlaid"""
+    progress: bool = False
+    """show a progress bar (a line a minute where stderr is no terminal)"""
+
+
+def policies_by_name(name: str) -> BehaviourPolicies:
+    """``"trained"`` (the shipped values) or ``"reactive"`` (the hand-written baseline).
+
+    Raises:
+        ValueError: another name.
+        FileNotFoundError: ``"trained"`` and the trained values are not installed.
+    """
+    if name == "trained":
+        return default_policies()
+    if name == "reactive":
+        return BehaviourPolicies.reactive()
+    raise ValueError(f"unknown policies {name!r}; allowed: {', '.join(POLICY_NAMES)}")
 
 
 def make_config(
@@ -143,85 +229,100 @@ def run(
     *,
     config: RunConfig | EvolutionConfig | None = None,
     out_dir: str | os.PathLike[str] | None = None,
-    policies: BehaviourPolicies | None = None,
+    policies: BehaviourPolicies | str = "trained",
     resume: bool = False,
-    checkpoint_every: int = 1,
-    keep_checkpoints: int = 3,
-    max_steps: int | None = None,
-    progress: bool = False,
-    versions: dict[str, Any] | None = None,
-    tensorboard: str | os.PathLike[str] | None = None,
     plugins: Sequence[Plugin] = (),
     **overrides: Any,
 ) -> pd.DataFrame:
-    """Run EE or CE for ``generations`` generations and return the statistics table.
+    """Run EE or CE for ``generations`` generations and return the statistics table: the short
+    form of :func:`execute`, with the fields of :class:`RunSpec` it names and ``out_dir`` as
+    the output directory. The checkpoint cadence, how many checkpoints to keep, a step budget,
+    TensorBoard and a progress bar are fields of :class:`RunSpec` and :class:`RunOutput`: build
+    them and call :func:`execute`.
 
     Args:
-        method: ``"ee"`` (embodied evolution) or ``"ce"`` (centralised GA).
+        method: ``"ee"`` (embodied evolution), ``"ce"`` (centralised GA) or another scheme.
         generations: generations to complete (the paper: 120).
-        seed: the run's seed; the same seed, config and policies give identical results.
-        config: base configuration (default: the paper's, Tables 1 and 2).
-        out_dir: directory for ``statistics.csv``, ``events.csv``, ``run.json`` and
-            checkpoints; None keeps everything in memory (no checkpoints).
-        policies: basic behaviours (default: the shipped trained values; pass
-            ``BehaviourPolicies.reactive()`` for the hand-written baseline).
-        resume: continue from the newest checkpoint in ``out_dir`` (from scratch if it has
-            none).
-        checkpoint_every: generations between checkpoints (with ``out_dir``).
-        keep_checkpoints: newest checkpoints to keep (0: all).
-        max_steps: stop after this many world control steps even if unfinished.
-        progress: show a progress bar.
-        versions: with ``out_dir``: a record of the software environment, written as
+        seed: the run's seed.
+        config: base configuration (default: the paper's).
+        out_dir: the run directory (None: in memory only).
+        policies: ``"trained"``, ``"reactive"`` or the basic behaviours themselves.
+        resume: continue the run in ``out_dir``.
+        plugins: the plugins the run uses.
+        **overrides: config fields, see :func:`make_config`.
+    """
+    spec = RunSpec(method, generations, seed, config, overrides, policies, plugins=plugins)
+    return execute(spec, RunOutput(out_dir), resume=resume)
+
+
+def execute(
+    spec: RunSpec,
+    output: RunOutput | None = None,
+    *,
+    resume: bool = False,
+    versions: Mapping[str, Any] | None = None,
+) -> pd.DataFrame:
+    """Run ``spec`` into ``output`` and return the statistics table.
+
+    Args:
+        spec: what to run (the method, generations, seed, settings, behaviours, budget,
+            plugins).
+        output: where the results go (default: nowhere; only the table is returned).
+        resume: continue from the newest checkpoint in ``output.directory`` (from scratch if
+            it has none).
+        versions: with a directory: a record of the software environment, written as
             ``versions.json`` once the run is built, just before ``run.json`` (so a run that
             fails to start leaves no directory behind).
-        tensorboard: a TensorBoard run directory: each generation's statistics and weights
-            are written there as it closes (:mod:`evolution.lab.monitor`; a resumed run starts
-            a new event file there, each generation appearing once). Needs the extra
-            ``monitor``; checked before anything is created.
-        plugins: the plugins the run uses, loaded here first where they are not yet (so
-            overrides may name what they register), and recorded in ``run.json``; with
-            ``resume`` they must be those the run's record names.
-        **overrides: config fields, see :func:`make_config`.
 
     Returns:
         One row per completed generation (see :meth:`EvolutionRunner.statistics`).
 
     Raises:
         ValueError: bad arguments or overrides (population not divisible by robots,
-            probabilities outside [0, 1], ...), or an ``out_dir`` holding another run without
-            ``resume``, or a ``tensorboard`` directory that cannot be written or without the
-            ``tensorboard`` package, or ``resume`` with other plugins than the run records.
+            probabilities outside [0, 1], unknown policies, ...), or a directory holding
+            another run without ``resume``, or a ``tensorboard`` directory that cannot be
+            written or without the ``tensorboard`` package, or ``resume`` with other plugins
+            than the run records.
         PluginError: a plugin is missing, changed or fails to load
             (:class:`cyber_rodent.plugins.PluginError`, a ``ValueError``).
         CheckpointError: ``resume`` found a corrupt or incompatible checkpoint (nothing is
             modified).
-        FileNotFoundError: no ``policies`` given and the trained values are not installed.
+        FileNotFoundError: the trained behaviours are asked for and not installed.
     """
-    plugins = tuple(plugins)
+    output = output if output is not None else RunOutput()
+    plugins = tuple(spec.plugins)
     for plugin in plugins:
         ensure_loaded(plugin)
-    run_config = make_config(method, config, **overrides)
+    run_config = make_config(spec.method, spec.config, **spec.overrides)
     check_run_config(run_config)
+    generations, max_steps = spec.generations, spec.max_steps
     if isinstance(generations, bool) or not isinstance(generations, int) or generations < 0:
         raise ValueError(f"generations must be an integer in [0, ∞), got {generations!r}")
-    check_integer("checkpoint_every", checkpoint_every, 1)
-    check_integer("keep_checkpoints", keep_checkpoints, 0)
+    check_integer("checkpoint_every", output.checkpoint_every, 1)
+    check_integer("keep_checkpoints", output.keep_checkpoints, 0)
     if max_steps is not None:
         check_integer("max_steps", max_steps, 0)
-    board = check_tensorboard(tensorboard, "tensorboard") if tensorboard is not None else None
-    policies = policies if policies is not None else default_policies()
-    if out_dir is None:
+    board = (
+        check_tensorboard(output.tensorboard, "tensorboard")
+        if output.tensorboard is not None
+        else None
+    )
+    policies = (
+        policies_by_name(spec.policies) if isinstance(spec.policies, str) else spec.policies
+    )
+    progress = output.progress
+    if output.directory is None:
         if resume:
             raise ValueError("resume=True needs the out_dir of the run to continue")
         with (
-            EvolutionRunner(run_config, seed, policies) as runner,
+            EvolutionRunner(run_config, spec.seed, policies) as runner,
             monitoring(board, runner) as monitor,
         ):
             return runner.run(
                 generations, max_steps=max_steps, progress=progress, on_generation=monitor
             )
 
-    out = Path(out_dir)
+    out = Path(output.directory)
     checkpoints = out / CHECKPOINT_DIR
     newest = latest_checkpoint(checkpoints)
     previous = read_record(out / RUN_FILE) if resume else None
@@ -229,14 +330,16 @@ def run(
         check_plugins(previous, plugins, out / RUN_FILE)
     if resume and newest is not None:
         remove_stale_temporaries(checkpoints)
-        runner = EvolutionRunner.from_checkpoint(newest, policies, expect=(run_config, seed))
+        runner = EvolutionRunner.from_checkpoint(
+            newest, policies, expect=(run_config, spec.seed)
+        )
     else:
         if not resume and holds_a_run(out):
             raise ValueError(
                 f"out_dir {out} already holds a run ({RUN_FILE} or checkpoints); pass "
                 "resume=True to continue it, or choose an empty directory"
             )
-        runner = EvolutionRunner(run_config, seed, policies)
+        runner = EvolutionRunner(run_config, spec.seed, policies)
     with runner:
         if previous is not None and is_final_record(
             previous, runner, generations, max_steps, plugins
@@ -261,8 +364,8 @@ def run(
             table = runner.run(
                 generations,
                 checkpoint_dir=checkpoints,
-                checkpoint_every=checkpoint_every,
-                keep_checkpoints=keep_checkpoints,
+                checkpoint_every=output.checkpoint_every,
+                keep_checkpoints=output.keep_checkpoints,
                 max_steps=max_steps,
                 progress=progress,
                 on_generation=write_results,

@@ -25,6 +25,7 @@ loads the plugins the run records again and refuses one that is missing or has c
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import json
 import os
@@ -55,16 +56,20 @@ from evolution.checkpoint import read_header
 from evolution.config import MAX_GENERATIONS, MAX_RUN_STEPS
 from evolution.lab.api import (
     CHECKPOINT_DIR,
+    POLICY_NAMES,
     RUN_FILE,
     STATISTICS_FILE,
     VERSIONS_FILE,
+    RunOutput,
+    RunSpec,
     check_run_config,
     describe_plugins,
+    execute,
     holds_a_run,
     make_config,
+    policies_by_name,
     read_record,
     recorded_plugins,
-    run,
 )
 from evolution.lab.cells import write_cell_comparison
 from evolution.lab.comparison import write_report
@@ -82,7 +87,6 @@ from evolution.runner import (
 )
 
 FIGURES_DIR = "figures"
-POLICY_NAMES = ("trained", "reactive")
 #: Distributions whose versions a run records.
 RECORDED_DISTRIBUTIONS = (
     "cyber-rodent", "mujoco", "dm-control", "numpy", "opencv-python-headless", "pandas",
@@ -93,15 +97,6 @@ PAPER_COMMAND = "cyber-rodent sweep --methods ee,ce --seeds 0-19 --generations 1
 
 
 # --- policies ----------------------------------------------------------------------------------
-def policies_by_name(name: str) -> BehaviourPolicies:
-    """``"trained"`` (the shipped values) or ``"reactive"`` (the hand-written baseline)."""
-    if name == "trained":
-        return BehaviourPolicies.load_default()
-    if name == "reactive":
-        return BehaviourPolicies.reactive()
-    raise ValueError(f"unknown policies {name!r}; allowed: {', '.join(POLICY_NAMES)}")
-
-
 def policies_for_identity(identity: str) -> BehaviourPolicies:
     """The installed policies whose identity a run recorded (for resume and render)."""
     for name in POLICY_NAMES:
@@ -271,64 +266,57 @@ def _write_json(path: Path, record: dict[str, Any]) -> None:
 
 
 def evolve(
-    method: str,
-    generations: int,
-    seed: int,
-    out: str | os.PathLike[str],
+    spec: RunSpec,
+    output: RunOutput | None = None,
     *,
-    overrides: dict[str, Any] | None = None,
-    policies: str = "trained",
     resume: bool = False,
     force: bool = False,
-    checkpoint_every: int = 1,
-    keep_checkpoints: int = 3,
-    max_steps: int | None = None,
-    progress: bool = True,
     argv: list[str] | None = None,
-    tensorboard: str | os.PathLike[str] | None = None,
-    plugins: Sequence[Plugin] = (),
 ) -> tuple[Path, pd.DataFrame]:
-    """Run (or continue) one EE/CE run in a run directory and draw its figures.
+    """Run (or continue) one run in a run directory and draw its figures.
 
-    ``max_steps`` stops the run after that many control steps in all even if its generations
-    are not complete (a population that cannot complete its generations: agents that learn
-    from zero die before they mate). ``tensorboard=DIR`` writes each generation to TensorBoard
-    as it closes, in ``DIR/<name of the run directory>`` (:mod:`evolution.lab.monitor`), so
-    that runs sharing ``DIR`` are overlaid. ``plugins`` are loaded first (where this process has
-    not yet), so the overrides may name what they register, and ``run.json`` records them.
+    ``output.directory`` receives the run (default: a new one, :func:`default_out_dir`):
+    ``resume`` continues the run there, ``force`` replaces it (:func:`prepare_out_dir`).
+    ``output.tensorboard=DIR`` writes each generation to TensorBoard as it closes, in
+    ``DIR/<name of the run directory>`` (:mod:`evolution.lab.monitor`), so that runs sharing
+    ``DIR`` are overlaid. ``spec.max_steps`` stops the run after that many control steps in
+    all even if its generations are not complete (a population that cannot complete its
+    generations: agents that learn from zero die before they mate). ``spec.plugins`` are
+    loaded first (where this process has not yet), so the overrides may name what they
+    register, and ``run.json`` records them. ``argv``: the command line ``versions.json``
+    records (default: this process's).
 
-    Everything is validated before the directory is touched, and the directory is created
-    only once the run is built (:func:`evolution.lab.api.run` writes ``versions.json`` and
-    ``run.json`` then), so bad input or a failed start leaves nothing behind.
+    Everything is validated before the directory is touched, in messages that name the
+    command line's options (``--generations``), and the directory is created only once the
+    run is built (:func:`evolution.lab.api.execute` writes ``versions.json`` and ``run.json``
+    then), so bad input or a failed start leaves nothing behind.
     """
 
-    overrides = dict(overrides or {})
-    plugins = tuple(ensure_loaded(plugin) for plugin in plugins)  # before the settings
-    check_run_config(make_config(method, **overrides))  # method, every override, their sizes
-    check_integer("--generations", generations, 1, MAX_GENERATIONS)
-    check_integer("--seed", seed, 0)
-    check_integer("--checkpoint-every", checkpoint_every, 1, MAX_GENERATIONS)
-    check_integer("--keep-checkpoints", keep_checkpoints, 0, MAX_GENERATIONS)
-    if max_steps is not None:
-        check_integer("--max-steps", max_steps, 1, MAX_RUN_STEPS)
-    chosen = policies_by_name(policies)
-    board = check_tensorboard(tensorboard) if tensorboard is not None else None
-    path = prepare_out_dir(out, resume=resume, force=force)
-    table = run(
-        method,
-        generations,
-        seed,
-        out_dir=path,
-        policies=chosen,
+    output = output if output is not None else RunOutput()
+    plugins = tuple(ensure_loaded(plugin) for plugin in spec.plugins)  # before the settings
+    # the method, every override, their sizes
+    check_run_config(make_config(spec.method, spec.config, **spec.overrides))
+    check_integer("--generations", spec.generations, 1, MAX_GENERATIONS)
+    check_integer("--seed", spec.seed, 0)
+    check_integer("--checkpoint-every", output.checkpoint_every, 1, MAX_GENERATIONS)
+    check_integer("--keep-checkpoints", output.keep_checkpoints, 0, MAX_GENERATIONS)
+    if spec.max_steps is not None:
+        check_integer("--max-steps", spec.max_steps, 1, MAX_RUN_STEPS)
+    chosen = policies_by_name(spec.policies) if isinstance(spec.policies, str) else spec.policies
+    board = check_tensorboard(output.tensorboard) if output.tensorboard is not None else None
+    out = output.directory
+    path = prepare_out_dir(
+        default_out_dir(spec.method, spec.seed) if out is None else out, resume=resume, force=force
+    )
+    table = execute(
+        dataclasses.replace(spec, policies=chosen, plugins=plugins),
+        dataclasses.replace(
+            output,
+            directory=path,
+            tensorboard=None if board is None else board / path.resolve().name,
+        ),
         resume=resume,
-        checkpoint_every=checkpoint_every,
-        keep_checkpoints=keep_checkpoints,
-        max_steps=max_steps,
-        progress=progress,
         versions=environment_versions(argv),
-        tensorboard=None if board is None else board / path.resolve().name,
-        plugins=plugins,
-        **overrides,
     )
     plot_run_dir(path)
     return path, table
@@ -404,19 +392,15 @@ def resume_run(
             config, seed = runner.config, runner.seed
     else:
         config = run_config_from_record(record.get("config"))
-    table = run(
-        config.method,
-        target,
-        seed,
-        config=config,
-        out_dir=path,
-        policies=chosen,
-        resume=True,
-        max_steps=max_steps,
-        progress=progress,
-        tensorboard=None if board is None else board / path.resolve().name,
-        plugins=loaded,
+    spec = RunSpec(
+        config.method, target, seed, config, policies=chosen, max_steps=max_steps, plugins=loaded
     )
+    output = RunOutput(
+        path,
+        tensorboard=None if board is None else board / path.resolve().name,
+        progress=progress,
+    )
+    table = execute(spec, output, resume=True)
     plot_run_dir(path)
     return path, table
 

@@ -48,9 +48,9 @@ run as their source text and hash. A local worker or a Ray task loads them (chec
 against the hash) before it builds its run, so neither needs the plugin's file, and every run
 records them in its ``run.json``. A sweep is continued only with the plugins its runs record.
 
-Monitoring: with ``tensorboard=DIR`` every run writes each generation to TensorBoard as it
-closes (:mod:`evolution.lab.monitor`), in ``DIR/<method>-seed<NNN>`` (``DIR/<cell>/...`` in a
-grid), so that ``tensorboard --logdir DIR`` overlays the runs. Local workers write their run's
+Monitoring: with ``RunOutput(tensorboard=DIR)`` every run writes each generation to TensorBoard
+as it closes (:mod:`evolution.lab.monitor`), in ``DIR/<method>-seed<NNN>`` (``DIR/<cell>/...``
+in a grid), so that ``tensorboard --logdir DIR`` overlays the runs. Local workers write their run's
 event files themselves; on Ray the tasks return each closed generation's record with their
 files and the driver writes them, so the worker nodes need neither the package nor ``DIR``.
 
@@ -74,7 +74,7 @@ import tempfile
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -88,14 +88,17 @@ from evolution.lab.api import (
     CHECKPOINT_DIR,
     EVENTS_FILE,
     RUN_FILE,
+    RunOutput,
+    RunSpec,
     check_plugins,
     check_run_config,
+    execute,
     extra_tables,
     learning_table,
     make_config,
+    policies_by_name,
     read_record,
     robot_table,
-    run,
     run_record,
     write_tables,
 )
@@ -106,7 +109,7 @@ from evolution.lab.monitor import (
     TensorBoardWriter,
     check_tensorboard,
 )
-from evolution.runner import EvolutionRunner, default_policies, latest_checkpoint
+from evolution.runner import EvolutionRunner, latest_checkpoint
 from evolution.runner.checkpoints import prune_checkpoints
 from evolution.runner.settings import merge
 from evolution.schemes import scheme_names
@@ -289,6 +292,13 @@ class SweepSpec:
         chosen = set(self.members)
         return [member for member in ordered if member in chosen]
 
+    def run_spec(self, member: SweepRun) -> RunSpec:
+        """What ``member`` runs (its plugins are loaded from :attr:`plugins` where it runs)."""
+        return RunSpec(
+            member.method, self.generations, member.seed, overrides=self.settings_of(member.cell),
+            policies=self.policies, max_steps=self.max_steps,
+        )  # fmt: skip
+
     def settings_of(self, cell: str) -> dict[str, Any]:
         """The settings of the runs in ``cell``: the sweep's overrides, then the cell's."""
 
@@ -355,38 +365,23 @@ def check_sweep_plugins(out_dir: str | os.PathLike[str], spec: SweepSpec) -> Non
 
 
 def run_one(
-    method: str,
-    seed: int,
-    generations: int,
-    out: str,
-    overrides: dict[str, Any],
-    policies: str = "trained",
-    keep_checkpoints: int = KEEP_CHECKPOINTS,
-    max_steps: int | None = None,
-    tensorboard: str | None = None,
-    plugins: tuple[PluginSource, ...] = (),
+    spec: RunSpec, output: RunOutput, plugins: tuple[PluginSource, ...] = ()
 ) -> pd.DataFrame:
-    """Run (or resume) one sweep member in its run directory; the local worker entry point.
+    """Run (or resume) one sweep member (:meth:`SweepSpec.run_spec`) in its run directory; the
+    local worker entry point.
 
-    ``tensorboard``: the member's TensorBoard run directory (None: no monitoring).
-    ``plugins``: loaded first, from their text (checked against their hash).
+    ``plugins``: loaded first, from their text (checked against their hash), and run as the
+    spec's plugins.
     """
-    from behaviours import BehaviourPolicies
-
     loaded = tuple(source.load() for source in plugins)
-    chosen = BehaviourPolicies.reactive() if policies == "reactive" else None
-    return run(
-        method, generations, seed, out_dir=out, resume=True, policies=chosen,
-        keep_checkpoints=keep_checkpoints, max_steps=max_steps, tensorboard=tensorboard,
-        plugins=loaded, **overrides,
-    )  # fmt: skip
+    return execute(replace(spec, plugins=loaded), output, resume=True)
 
 
 class RunChunk(NamedTuple):
     """What a Ray task needs to advance one run: the run's identity and its newest checkpoint.
 
     Attributes:
-        method, seed, overrides, policies: the run (as :func:`run_one` takes them).
+        method, seed, overrides, policies: the run (as :meth:`SweepSpec.run_spec` has them).
         generations: the run's target.
         chunk: generations this task adds at most.
         keep_checkpoints: newest checkpoints a run directory keeps (0: all).
@@ -443,14 +438,10 @@ def advance_run(task: RunChunk) -> ChunkResult:
         CheckpointError: the checkpoint is corrupt or belongs to another run.
         PluginError: a plugin's text does not match its hash, or it fails to load.
     """
-    from behaviours import BehaviourPolicies
-
     plugins = tuple(source.load() for source in task.plugins)  # before the config names them
     config = make_config(task.method, **task.overrides)
     check_run_config(config)
-    policies = (
-        BehaviourPolicies.reactive() if task.policies == "reactive" else default_policies()
-    )
+    policies = policies_by_name(task.policies)
     with tempfile.TemporaryDirectory(prefix="cyber-rodent-run-") as temp:
         out = Path(temp)
         checkpoints = out / CHECKPOINT_DIR
@@ -643,38 +634,46 @@ class _Progress:
             self.bar.close()
 
 
+@dataclass(frozen=True)
+class Execution:
+    """How a sweep runs its members: where (local processes or Ray), how many at a time, and
+    how often a failed run is tried again."""
+
+    executor: str = "local"
+    """``"local"`` (one process per run) or ``"ray"`` (Ray tasks, a chunk of generations
+    each)"""
+    workers: int | None = None
+    """concurrent runs (None: the number of CPUs here; with Ray, the cluster's)"""
+    ray_address: str = "local"
+    """with ``executor="ray"``: ``"auto"``, ``"HOST:PORT"``, ``"ray://HOST:PORT"`` or
+    ``"local"`` (start a Ray instance on this machine with ``workers`` CPUs)"""
+    max_retries: int = 2
+    """how often a failed run is resubmitted (it resumes from its checkpoint)"""
+    chunk_generations: int = CHUNK_GENERATIONS
+    """with ``executor="ray"``: generations one task advances a run by"""
+    poll_seconds: float = 2.0
+    """how often progress is refreshed"""
+
+
 def sweep(
     spec: SweepSpec,
-    out_dir: str | os.PathLike[str],
+    output: RunOutput,
+    execution: Execution | None = None,
     *,
-    workers: int | None = None,
-    executor: str = "local",
-    ray_address: str = "local",
-    max_retries: int = 2,
-    progress: bool = True,
-    poll_seconds: float = 2.0,
-    keep_checkpoints: int = KEEP_CHECKPOINTS,
-    chunk_generations: int = CHUNK_GENERATIONS,
-    tensorboard: str | os.PathLike[str] | None = None,
     on_run_done: Callable[[SweepRun], None] | None = None,
 ) -> dict[SweepRun, pd.DataFrame]:
     """Run every (method, seed, cell) of ``spec``; return their statistics tables.
 
     Args:
         spec: methods, seeds, generations and overrides.
-        out_dir: parent directory of the run directories (and of the cells' directories).
-        workers: concurrent runs (default: the number of CPUs here; with Ray, the cluster's).
-        executor: ``"local"`` (one process per run) or ``"ray"`` (Ray tasks, a chunk of
-            generations each).
-        ray_address: with ``executor="ray"``: ``"auto"``, ``"HOST:PORT"``, ``"ray://HOST:PORT"``
-            or ``"local"`` (start a Ray instance on this machine with ``workers`` CPUs).
-        max_retries: how often a failed run is resubmitted (it resumes from its checkpoint).
-        progress: show the aggregate progress bar.
-        poll_seconds: how often progress is refreshed.
-        keep_checkpoints: newest checkpoints each run directory keeps (0: all of them).
-        chunk_generations: with ``executor="ray"``: generations one task advances a run by.
-        tensorboard: write every run's generations to TensorBoard as they close, each run
-            in ``<tensorboard>/<cell>/<method>-seed<NNN>`` (:mod:`evolution.lab.monitor`).
+        output: ``directory``, the parent of the run directories (and of the cells'
+            directories); ``keep_checkpoints``, the newest checkpoints each run directory keeps
+            (0: all of them); ``tensorboard``, where every run's generations are written to
+            TensorBoard as they close, each run in ``<tensorboard>/<cell>/<method>-seed<NNN>``
+            (:mod:`evolution.lab.monitor`); ``progress``, the aggregate progress bar. A sweep
+            checkpoints every generation, so ``checkpoint_every`` must be 1.
+        execution: local processes or Ray, and how many workers (default: :class:`Execution`,
+            a process per CPU here).
         on_run_done: called in this process with each run as soon as it has finished and
             its run directory is complete (e.g. to publish its tables while the others run).
 
@@ -684,37 +683,47 @@ def sweep(
         SweepFailed: a run still failed after ``max_retries`` retries (the others finish
             first; their results stay on disk).
     """
-    if executor not in EXECUTORS:
-        raise ValueError(f"executor must be one of {EXECUTORS}, got {executor!r}")
+    how = execution if execution is not None else Execution()
+    workers, keep_checkpoints = how.workers, output.keep_checkpoints
+    if output.directory is None:
+        raise ValueError("a sweep needs an output directory, the parent of its run directories")
+    if output.checkpoint_every != 1:
+        raise ValueError(
+            "a sweep checkpoints every generation (so a retried run loses at most one): "
+            f"checkpoint_every must be 1, got {output.checkpoint_every!r}"
+        )
+    if how.executor not in EXECUTORS:
+        raise ValueError(f"executor must be one of {EXECUTORS}, got {how.executor!r}")
     if workers is not None and (
         isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
     ):
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    if not isinstance(max_retries, int) or max_retries < 0:
-        raise ValueError(f"max_retries must be an integer >= 0, got {max_retries!r}")
+    if not isinstance(how.max_retries, int) or how.max_retries < 0:
+        raise ValueError(f"max_retries must be an integer >= 0, got {how.max_retries!r}")
     check_integer("keep_checkpoints", keep_checkpoints, 0)
-    check_integer("chunk_generations", chunk_generations, 1)
+    check_integer("chunk_generations", how.chunk_generations, 1)
 
-    out = Path(out_dir)
+    out = Path(output.directory)
     check_grid(out, spec.grid)
     check_sweep_plugins(out, spec)
     spec.check()  # the plugins, every cell's settings, before anything runs
-    if executor == "ray":
-        check_ray_address(ray_address)
+    if how.executor == "ray":
+        check_ray_address(how.ray_address)
+    tensorboard = output.tensorboard
     board = check_tensorboard(tensorboard, "tensorboard") if tensorboard is not None else None
     out.mkdir(parents=True, exist_ok=True)
     if spec.grid:
         write_grid(out, spec.grid, spec.plugins)
-    bar = _Progress(spec, out, progress)
+    bar = _Progress(spec, out, output.progress)
     try:
-        if executor == "local":
+        if how.executor == "local":
             return _sweep_local(
-                spec, out, workers or os.cpu_count() or 1, max_retries, keep_checkpoints, bar,
-                poll_seconds, board, on_run_done,
+                spec, out, workers or os.cpu_count() or 1, how.max_retries, keep_checkpoints,
+                bar, how.poll_seconds, board, on_run_done,
             )  # fmt: skip
-        plan = _RayPlan(spec, out, keep_checkpoints, chunk_generations, board)
+        plan = _RayPlan(spec, out, keep_checkpoints, how.chunk_generations, board)
         return _sweep_ray(
-            plan, workers, ray_address, max_retries, bar, poll_seconds, on_run_done
+            plan, workers, how.ray_address, how.max_retries, bar, how.poll_seconds, on_run_done
         )
     finally:
         bar.close()
@@ -744,15 +753,12 @@ def _sweep_local(
             futures = {
                 pool.submit(
                     run_one,
-                    member.method,
-                    member.seed,
-                    spec.generations,
-                    str(run_dir(out, *member)),
-                    spec.settings_of(member.cell),
-                    spec.policies,
-                    keep_checkpoints,
-                    spec.max_steps,
-                    None if board is None else str(run_dir(board, *member)),
+                    spec.run_spec(member),
+                    RunOutput(
+                        str(run_dir(out, *member)),
+                        keep_checkpoints=keep_checkpoints,
+                        tensorboard=None if board is None else str(run_dir(board, *member)),
+                    ),
                     spec.plugins,
                 ): member
                 for member in todo

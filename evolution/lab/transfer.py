@@ -49,6 +49,7 @@ from evolution.lab.api import (
     EVENTS_FILE,
     ROBOT_STATISTICS_FILE,
     RUN_FILE,
+    RunOutput,
     extra_tables,
     robot_table,
     run_record,
@@ -225,46 +226,57 @@ def _write_json(path: Path, record: dict[str, Any]) -> None:
     write_text(path, json.dumps(record, indent=2, sort_keys=True, default=repr) + "\n")
 
 
-def transfer(
-    source: str | os.PathLike[str],
-    out: str | os.PathLike[str],
-    *,
-    generation: int = 40,
-    top: int = 5,
-    robots: int = 3,
-    agents_per_robot: int = 5,
-    generations: int = 10,
-    profile: HardwareProfile | None = None,
-    seed: int = 0,
-    keep_checkpoints: int = 3,
-    max_steps: int | None = None,
-    progress: bool = False,
-) -> TransferResult:
-    """Seed a new colony with the fittest individuals of ``source`` and continue evolution.
+@dataclass(frozen=True)
+class TransferSpec:
+    """What a transfer runs: whose individuals, how many, on which colony, for how long."""
+
+    source: str | os.PathLike[str]
+    """the source run directory (``run.json`` and ``checkpoints/``)"""
+    generation: int = 40
+    """the source generation whose population is transferred (its checkpoint)"""
+    top: int = 5
+    """how many of the fittest individuals are transferred"""
+    robots: int = 3
+    """robots of the new colony"""
+    agents_per_robot: int = 5
+    """virtual agents per robot"""
+    generations: int = 10
+    """generations to evolve after the transfer"""
+    profile: HardwareProfile | None = None
+    """the hardware-like profile (None: the plain simulation)"""
+    seed: int = 0
+    """the new run's seed"""
+    max_steps: int | None = None
+    """stop after this many control steps in all, even if the generations are not complete
+    (None: no budget)"""
+
+
+def transfer(spec: TransferSpec, output: RunOutput) -> TransferResult:
+    """Seed a new colony with the fittest individuals of ``spec.source`` and continue
+    evolution.
 
     Args:
-        source: the source run directory (``run.json`` and ``checkpoints/``).
-        out: the new run directory (must not hold a run).
-        generation: the source generation whose population is transferred.
-        top: how many of the fittest individuals are transferred.
-        robots: robots of the new colony.
-        agents_per_robot: virtual agents per robot.
-        generations: generations to evolve after the transfer.
-        profile: the hardware-like profile; None: the plain simulation.
-        seed: the new run's seed.
-        keep_checkpoints: newest checkpoints to keep in ``out`` (0: all).
-        max_steps: optional cap on control steps.
-        progress: show a progress bar.
+        spec: the source, its generation and how many individuals, the new colony, its
+            profile, seed and length.
+        output: ``directory``, the new run directory (must not hold a run); its checkpoint
+            cadence, the checkpoints kept (0: all) and a progress bar. A transfer writes no
+            TensorBoard files.
 
     Raises:
-        ValueError: bad arguments, ``source`` is not a run directory or lacks the generation,
-            ``out`` already holds a run.
+        ValueError: bad arguments, ``spec.source`` is not a run directory or lacks the
+            generation, the output directory already holds a run or is not given.
     """
 
-    top = check_integer("top", top, 1)
-    generations = check_integer("generations", generations, 1)
-    seed = check_integer("seed", seed, 0)
-    src, dst = Path(source), Path(out)
+    if output.directory is None:
+        raise ValueError("a transfer needs an output directory, the new run directory")
+    if output.tensorboard is not None:
+        raise ValueError("a transfer writes no TensorBoard files; leave tensorboard unset")
+    generation, robots, agents_per_robot = spec.generation, spec.robots, spec.agents_per_robot
+    profile = spec.profile
+    top = check_integer("top", spec.top, 1)
+    generations = check_integer("generations", spec.generations, 1)
+    seed = check_integer("seed", spec.seed, 0)
+    src, dst = Path(spec.source), Path(output.directory)
     record = read_run_record(src)
     checkpoint = checkpoint_of_generation(src, generation)
     if (dst / RUN_FILE).exists() or list_checkpoints(dst / CHECKPOINT_DIR):
@@ -321,9 +333,10 @@ def transfer(
         table = runner.run(
             generations,
             checkpoint_dir=dst / CHECKPOINT_DIR,
-            keep_checkpoints=keep_checkpoints,
-            max_steps=max_steps,
-            progress=progress,
+            checkpoint_every=output.checkpoint_every,
+            keep_checkpoints=output.keep_checkpoints,
+            max_steps=spec.max_steps,
+            progress=output.progress,
             on_generation=write_results,
         )
         write_results(runner)
@@ -352,6 +365,7 @@ __all__ = [
     "TRANSFER_FILE",
     "Individual",
     "TransferResult",
+    "TransferSpec",
     "checkpoint_of_generation",
     "fittest_individuals",
     "hardware_run_config",

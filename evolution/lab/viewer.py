@@ -65,8 +65,8 @@ import numpy as np
 from cyber_rodent.constants import FIELD_SIZE
 from cyber_rodent.tasks.spec import task_names
 from evolution.checkpoint import CheckpointError, read_header
-from evolution.lab.api import CHECKPOINT_DIR, RUN_FILE
-from evolution.lab.experiment import policies_by_name, policies_for_identity, read_run_record
+from evolution.lab.api import CHECKPOINT_DIR, RUN_FILE, policies_by_name
+from evolution.lab.experiment import policies_for_identity, read_run_record
 from evolution.lab.video import BEHAVIOUR_STYLE
 from evolution.lab.window_capture import CaptureError, capture_own_window, display_problem
 from evolution.runner import EvolutionRunner, latest_checkpoint, policy_identity
