@@ -17,7 +17,7 @@ TINY = RunConfig(evolution=EvolutionConfig(
 
 
 def test_a_continuation_is_a_pure_function_of_the_checkpoint(tmp_path: Path) -> None:
-    run_evolution("ee", 2, 3, config=TINY, out_dir=tmp_path, keep_checkpoints=0)
+    run_evolution("ee", 2, 3, config=TINY, out_dir=tmp_path)  # keeps the newest 3
     checkpoint = tmp_path / "checkpoints" / "gen_00001.ckpt"
     off = continue_run(checkpoint, 300, rescue=False)
     again = continue_run(checkpoint, 300, rescue=False)
