@@ -87,7 +87,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from behaviours.inputs import behaviour_index, behaviour_inputs, search_inputs
-from cyber_rodent.commands import COMMAND_SPEEDS, N_COMMANDS
+from cyber_rodent.commands import N_COMMANDS, command_speeds
 from cyber_rodent.profiles import (
     HardwareProfile,
     RangeSensorNoise,
@@ -96,7 +96,7 @@ from cyber_rodent.profiles import (
     randomised,
 )
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
-from cyber_rodent.tasks.episode import TaskEpisode
+from cyber_rodent.tasks.episode import EpisodeOptions, TaskEpisode
 from cyber_rodent.tasks.rewards import (
     COVERAGE_CELL,
     EpisodeConfig,
@@ -144,6 +144,8 @@ class BehaviourEpisode:
         randomise: draw the profile's magnitudes anew each episode (needs ``profile``).
         survival: the survival rules (default: the paper's); their energy fields are replaced
             by endless energy (:func:`episode_rules`).
+        robot: the robots' kind (``WorldConfig.robot``; default the Cyber Rodent): its sensors,
+            its proximity inputs and its scaled commands (``commands.command_speeds``).
 
     Attributes:
         task: the task's spec (:class:`~cyber_rodent.tasks.spec.TaskSpec`).
@@ -159,6 +161,7 @@ class BehaviourEpisode:
         profile: HardwareProfile | None = None,
         randomise: bool = False,
         survival: SurvivalConfig | None = None,
+        robot: str = "cyber_rodent",
     ) -> None:
         self.behaviour = behaviour_index(behaviour)
         self.name = behaviour
@@ -174,11 +177,13 @@ class BehaviourEpisode:
         if profile is not None and profile.field.enabled:
             field = task.hardware_field(profile.field.n_robots, profile.field.n_packs)
         robots, packs = field.robots, field.packs
-        world_cfg = WorldConfig(n_robots=robots, n_packs=packs)
+        world_cfg = WorldConfig(n_robots=robots, n_packs=packs, robot=robot)
         if timestep is not None:
-            world_cfg = WorldConfig(n_robots=robots, n_packs=packs, timestep=timestep)
+            world_cfg = dataclasses.replace(world_cfg, timestep=timestep)
         fixed = np.random.default_rng(0)  # construction only; every episode re-draws
         self.world = World(world_cfg, fixed)
+        self._commands = command_speeds(self.world.robot)
+        self._proximity = self.world.robot.proximity
         self.survival = SurvivalWorld(self.world, survival_cfg, fixed)
         camera = CameraConfig()
         if profile is not None:
@@ -204,11 +209,13 @@ class BehaviourEpisode:
             task,
             self.survival,
             self._look,
-            reward="shaped",
-            scales=RewardScales.from_episode(self.config),
-            episode_steps=self.config.max_steps,
-            max_start_draws=self.config.max_start_draws,
-            collisions=True,
+            EpisodeOptions(
+                reward="shaped",
+                scales=RewardScales.from_episode(self.config),
+                episode_steps=self.config.max_steps,
+                max_start_draws=self.config.max_start_draws,
+                collisions=True,
+            ),
         )
         self.n_learners = self.episode.k
         self.rewards = self.episode.rewards
@@ -234,7 +241,7 @@ class BehaviourEpisode:
     def step(self, commands: np.ndarray) -> StepResult:
         """Drive the learners with wheel commands (k,) for one control step."""
         k = self.n_learners
-        self.episode.wheels[:k] = COMMAND_SPEEDS[np.asarray(commands, dtype=np.int64)]
+        self.episode.wheels[:k] = self._commands[np.asarray(commands, dtype=np.int64)]
         step = self.episode.step()
         assert step.collided is not None  # measured every step
         return StepResult(self._states, step.reward, step.terminated, step.collided[:k].copy())
@@ -286,9 +293,11 @@ class BehaviourEpisode:
         vision = self.vision
         if vision is None:  # Search: proximity only
             ranges = self._ranges()[:k]
-            return search_inputs(ranges, self.world.range_max[:k])
+            return search_inputs(ranges, self.world.range_max[:k], self._proximity)
         self._frame = vision.observe()
-        inputs = behaviour_inputs(self._frame, self._ranges(), self.world.range_max)
+        inputs = behaviour_inputs(
+            self._frame, self._ranges(), self.world.range_max, proximity=self._proximity
+        )
         return inputs.of(self.behaviour)[:k].copy()
 
 

@@ -22,9 +22,9 @@ Normalisation (one convention for the whole package, shared with the evolved con
   obstacle), while the simulated sensors return ranges in metres. We convert each reading to
   ``proximity = 1 - range / range_max`` (0 = nothing within the sensor's range, 1 = touching),
   so "the two largest readings" are the two *closest* obstacles. Search's input is
-  ``[largest, second largest]`` of the six proximities (sensors ``PROXIMITY_SIX``: the 5 front
-  and the back one), sorted in decreasing order; which sensors they came from is not an input,
-  exactly as the paper states it.
+  ``[largest, second largest]`` of the six proximities (sensors ``RobotModel.proximity``: the
+  Cyber Rodent's 5 front and its back one), sorted in decreasing order; which sensors they
+  came from is not an input, exactly as the paper states it.
 
 Behaviour indices are the order of the evolved controller's outputs (Mate, Forage, Search).
 """
@@ -40,7 +40,7 @@ from behaviours.kernels import (
     RangeSensors,
     map_inputs_reference,
 )
-from cyber_rodent.constants import PROXIMITY_SIX
+from cyber_rodent.robot import CYBER_RODENT_PROXIMITY
 from cyber_rodent.vision.kernels import NearestTargets
 from cyber_rodent.vision.types import BATTERY, DEFAULT_MAX_DISTANCE, FACE, LED, VisionFrame
 
@@ -54,7 +54,7 @@ N_INPUT_DIMS = 2
 #: mapping is meaningless under another).
 INPUTS_VERSION = 1
 
-_PROXIMITY = np.asarray(PROXIMITY_SIX, dtype=np.int64)
+_PROXIMITY = np.asarray(CYBER_RODENT_PROXIMITY, dtype=np.int64)
 
 
 def behaviour_index(name: str) -> int:
@@ -70,7 +70,9 @@ def behaviour_index(name: str) -> int:
     return BEHAVIOUR_NAMES.index(name)
 
 
-def search_inputs(ranges: np.ndarray, range_max: np.ndarray) -> np.ndarray:
+def search_inputs(
+    ranges: np.ndarray, range_max: np.ndarray, proximity: tuple[int, ...] | None = None
+) -> np.ndarray:
     """Search's input: the two largest of the six (5 front + 1 back) proximity readings.
 
     The same rule as :func:`behaviour_inputs` (one mapping,
@@ -79,19 +81,21 @@ def search_inputs(ranges: np.ndarray, range_max: np.ndarray) -> np.ndarray:
     Args:
         ranges: (n, 8) range readings in metres.
         range_max: (n, 8) or (8,) each sensor's range in metres.
+        proximity: the six sensors read (default the Cyber Rodent's; :func:`behaviour_inputs`).
 
     Returns:
         (n, 2) ``[largest, second largest]`` proximity, in [0, 1].
     """
     ranges = np.asarray(ranges, dtype=np.float64)
     n = ranges.shape[0] if ranges.ndim == 2 else 0
-    return behaviour_inputs(VisionFrame.empty(n), ranges, range_max).search
+    return behaviour_inputs(VisionFrame.empty(n), ranges, range_max, proximity=proximity).search
 
 def behaviour_inputs(
     frame: VisionFrame,
     ranges: np.ndarray,
     range_max: np.ndarray,
     max_distance: float = DEFAULT_MAX_DISTANCE,
+    proximity: tuple[int, ...] | None = None,
 ) -> BehaviourInputs:
     """Map what the robots see and sense to the three behaviours' normalised inputs.
 
@@ -100,6 +104,8 @@ def behaviour_inputs(
         ranges: (n, 8) range readings in metres (``World.range_readings``).
         range_max: (n, 8) or (8,) each sensor's range in metres (``World.range_max``).
         max_distance: distance (m) normalised to 1; default the field's diagonal.
+        proximity: the six range sensors of the proximity inputs (``RobotModel.proximity``;
+            default the Cyber Rodent's five front and one back sensor).
 
     Returns:
         The inputs and availability flags of every robot.
@@ -108,15 +114,16 @@ def behaviour_inputs(
         ValueError: if the shapes of ``frame`` and ``ranges`` disagree.
     """
     n = frame.visible.shape[0]
+    columns = _PROXIMITY if proximity is None else np.asarray(proximity, dtype=np.int64)
     ranges = np.asarray(ranges, dtype=np.float64)
     if ranges.shape[0] != n:
         raise ValueError(
             f"ranges: expected one row per robot of the frame ({n}), got {ranges.shape}"
         )
-    if ranges.ndim != 2 or ranges.shape[1] <= _PROXIMITY.max():
+    if ranges.ndim != 2 or ranges.shape[1] <= columns.max():
         raise ValueError(f"ranges: expected shape (n_robots, 8), got {ranges.shape}")
     range_max = np.broadcast_to(np.asarray(range_max, dtype=np.float64), ranges.shape)
-    if not (range_max[:, _PROXIMITY] > 0).all():
+    if not (range_max[:, columns] > 0).all():
         raise ValueError("range_max: every sensor range must be > 0 m")
     visible = np.asarray(frame.visible, dtype=bool)
     # The vision's convention for an unseen target (bearing 0, distance inf) maps to [0.5, 1].
@@ -136,11 +143,11 @@ def behaviour_inputs(
         raw=ranges,
         range_max=range_max,
         ranges=np.empty_like(ranges),
-        proximity_columns=_PROXIMITY,
-        proximity_max=np.ascontiguousarray(range_max[:, _PROXIMITY]),
+        proximity_columns=columns,
+        proximity_max=np.ascontiguousarray(range_max[:, columns]),
     )
     buffers = InputBuffers(
-        proximity=np.empty((n, len(_PROXIMITY))),
+        proximity=np.empty((n, len(columns))),
         norm_bearing=np.empty((n, 3)),
         norm_distance=np.empty((n, 3)),
         behaviour=inputs,

@@ -44,7 +44,7 @@ class RangeSensors(NamedTuple):
     raw: Floats  #: (n, 8) sensordata, -1 where a ray hit nothing (or readings to re-use)
     range_max: Floats  #: (n, 8) each sensor's range, m
     ranges: Floats  #: (n, 8) out: readings saturated at the range (``World.range_readings``)
-    proximity_columns: Ints  #: (6,) sensors of the proximity inputs (``PROXIMITY_SIX``)
+    proximity_columns: Ints  #: (6,) sensors of the proximity inputs (``RobotModel.proximity``)
     proximity_max: Floats  #: (n, 6) their ranges
 
 

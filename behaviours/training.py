@@ -270,6 +270,7 @@ def train(
     profile: HardwareProfile | None = None,
     randomise: bool = False,
     survival: SurvivalConfig | None = None,
+    robot: str = "cyber_rodent",
 ) -> TrainingResult:
     """Train one behaviour and write its values, curve and checkpoint to ``out_dir``.
 
@@ -288,6 +289,9 @@ def train(
             see :mod:`behaviours.episodes`.
         survival: the survival rules of the episodes (default: the paper's); energy aside,
             every rule applies (:func:`behaviours.episodes.episode_rules`).
+        robot: the body the behaviours are trained on (``WorldConfig.robot``; default the
+            Cyber Rodent). Another body's behaviours need training anew on it
+            (``docs/extending.md`` §9).
 
     Returns:
         The values and the paths written.
@@ -310,7 +314,12 @@ def train(
     # Built before the output directory: rules the world refuses (a control step that is no
     # whole number of physics timesteps) leave nothing behind.
     env = BehaviourEpisode(
-        behaviour, config.episode, profile=profile, randomise=randomise, survival=survival
+        behaviour,
+        config.episode,
+        profile=profile,
+        randomise=randomise,
+        survival=survival,
+        robot=robot,
     )
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -337,6 +346,8 @@ def train(
         identity["profile"] = json.loads(json.dumps(described))  # as a checkpoint reads it
     if rules:  # absent under the paper's rules: earlier checkpoints keep their identity
         identity["survival"] = rules
+    if robot != "cyber_rodent":  # likewise absent for the paper's robot
+        identity["robot"] = robot
     start = 0
     if resume:
         if not paths["checkpoint"].is_file():
@@ -344,7 +355,7 @@ def train(
                 f"no checkpoint to resume: {paths['checkpoint']} does not exist"
             )
         state, saved_weights, curve = _read_checkpoint(paths["checkpoint"])
-        for key in {**identity, "profile": None, "survival": None}:  # absent on either side too
+        for key in {**identity, "profile": None, "survival": None, "robot": None}:  # or absent
             want = identity.get(key)
             if state.get(key) != want:
                 raise CheckpointError(
@@ -431,6 +442,7 @@ def train(
             trainer=config.to_dict(),
             **({"profile": identity["profile"]} if profile is not None else {}),
             **({"survival": rules} if rules else {}),
+            **({"robot": robot} if robot != "cyber_rodent" else {}),
             **_final_training_measures(behaviour, curve),
         ),
     )

@@ -89,8 +89,8 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
 
 from benchmarks.colony_scale import paper_density  # noqa: E402
 from benchmarks.publish_runs import finished, publish_run  # noqa: E402
-from cyber_rodent import constants as C  # noqa: E402
 from cyber_rodent.atomic import atomic_output, write_text  # noqa: E402
+from cyber_rodent.robot import robot_model  # noqa: E402
 from evolution.agent import Origin  # noqa: E402
 from evolution.config import EvolutionConfig  # noqa: E402
 from evolution.lab.api import RunOutput  # noqa: E402
@@ -1059,9 +1059,12 @@ POSITION_EVERY = 50
 WALLS_FILE = "walls.csv"
 
 
-def wall_share(half: float, band: float = WALL_BAND, clearance: float = C.BODY_RADIUS) -> float:
+def wall_share(half: float, band: float = WALL_BAND, clearance: float | None = None) -> float:
     """The share of the square a centre can reach (``half - clearance`` either side of the
-    middle) that lies within ``band`` of a wall: where uniformly spread robots would be."""
+    middle; default clearance: the paper's robot's) that lies within ``band`` of a wall: where
+    uniformly spread robots would be."""
+    if clearance is None:
+        clearance = robot_model().body_radius
     reach = half - clearance
     if reach <= 0:
         return 1.0

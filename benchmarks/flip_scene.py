@@ -60,6 +60,7 @@ import numpy as np
 
 import cyber_rodent.world as world_module
 from cyber_rodent import constants as C
+from cyber_rodent.robot import RobotParts, robot_model
 from cyber_rodent.world import World, WorldConfig
 
 SPEEDS = (0.2, 0.4, 0.6, 0.8, 1.0, 1.3)  # m/s, rim speed of both wheels of both robots
@@ -68,6 +69,9 @@ NOSE_X = 0.134  # m, front face of the teeth in the robot frame
 HALF_WIDTH = 0.07  # m, chassis half width
 APPROACH = 0.35  # m: each robot starts at least this far back along its path
 MIN_LEAD = 0.5  # s: and at least this long before the nominal touch
+
+#: The Cyber Rodent's MJCF part names (cyber_rodent.robot).
+PARTS = RobotParts()
 
 
 @dataclass(frozen=True)
@@ -150,7 +154,7 @@ def _teeth_off_robots(world: World) -> None:
     """Teeth collide with floor, walls and packs only: a collision bit (4) of their own that
     every non-robot body geom also accepts."""
     m = world.model
-    teeth = _geom_ids(world, C.TEETH_GEOM)
+    teeth = _geom_ids(world, PARTS.teeth_geom)
     m.geom_contype[teeth] = 4
     m.geom_conaffinity[teeth] = 0
     env = (world.geom_robot < 0) & ((m.geom_conaffinity & 2) != 0)
@@ -166,7 +170,7 @@ def _wheels_on_bodies(world: World) -> None:
 def _no_floor_friction_for_body(world: World) -> None:
     """Chassis and teeth slide on the floor with the chassis' own friction (0.15): a geom
     priority makes their friction win over the floor's 1.0 (they still collide with it)."""
-    for name in (C.CHASSIS_GEOM, C.TEETH_GEOM):
+    for name in (PARTS.chassis_geom, PARTS.teeth_geom):
         ids = _geom_ids(world, name)
         world.model.geom_priority[ids] = 2
         world.model.geom_friction[ids, 0] = 0.15
@@ -175,7 +179,7 @@ def _no_floor_friction_for_body(world: World) -> None:
 def _chassis_down(root: object) -> None:
     """Chassis box 3 mm deeper at the bottom (3.2-9.5 cm): the teeth (3.4-5 cm) lie within
     its height."""
-    for g in _robot_geoms(root, C.CHASSIS_GEOM):
+    for g in _robot_geoms(root, PARTS.chassis_geom):
         g.size = [0.11, 0.07, 0.0315]
         g.pos = [0.0, 0.0, 0.0635]
 
@@ -209,15 +213,15 @@ VARIANTS: dict[str, Variant] = {
             "teeth_mu15",
             "published, teeth friction 0.6 -> 0.15 (max rule: pack, wall, floor keep 0.6/1.0)",
             published=True,
-            model=_set(C.TEETH_GEOM, "geom_friction", [0.15, 0.005, 0.0001]),
+            model=_set(PARTS.teeth_geom, "geom_friction", [0.15, 0.005, 0.0001]),
         ),
         Variant(
             "rr_mu0",
             "published, teeth and chassis friction 0 against each other (0.6, 0.15 -> 0)",
             published=True,
             model=_chain(
-                _set(C.TEETH_GEOM, "geom_friction", [0.0, 0.005, 0.0001]),
-                _set(C.CHASSIS_GEOM, "geom_friction", [0.0, 0.005, 0.0001]),
+                _set(PARTS.teeth_geom, "geom_friction", [0.0, 0.005, 0.0001]),
+                _set(PARTS.chassis_geom, "geom_friction", [0.0, 0.005, 0.0001]),
             ),
         ),
         Variant(
@@ -237,8 +241,8 @@ VARIANTS: dict[str, Variant] = {
             "published, chassis and teeth contacts harder: solimp 0.95 0.99 0.001",
             published=True,
             model=_chain(
-                _set(C.CHASSIS_GEOM, "geom_solimp", [0.95, 0.99, 0.001, 0.5, 2]),
-                _set(C.TEETH_GEOM, "geom_solimp", [0.95, 0.99, 0.001, 0.5, 2]),
+                _set(PARTS.chassis_geom, "geom_solimp", [0.95, 0.99, 0.001, 0.5, 2]),
+                _set(PARTS.teeth_geom, "geom_solimp", [0.95, 0.99, 0.001, 0.5, 2]),
             ),
         ),
         Variant(
@@ -246,8 +250,8 @@ VARIANTS: dict[str, Variant] = {
             "published, chassis and teeth contacts softer: solref 0.05 1",
             published=True,
             model=_chain(
-                _set(C.CHASSIS_GEOM, "geom_solref", [0.05, 1.0]),
-                _set(C.TEETH_GEOM, "geom_solref", [0.05, 1.0]),
+                _set(PARTS.chassis_geom, "geom_solref", [0.05, 1.0]),
+                _set(PARTS.teeth_geom, "geom_solref", [0.05, 1.0]),
             ),
         ),
         Variant(
@@ -352,7 +356,10 @@ class _Indices:
         for i in range(n):
             p = C.robot_prefix(i)
             for k, (joint, motor) in enumerate(
-                ((C.LEFT_WHEEL_JOINT, C.LEFT_MOTOR), (C.RIGHT_WHEEL_JOINT, C.RIGHT_MOTOR))
+                (
+                    (PARTS.left_wheel_joint, PARTS.left_motor),
+                    (PARTS.right_wheel_joint, PARTS.right_motor),
+                )
             ):
                 j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, p + joint)
                 a = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, p + motor)
@@ -389,7 +396,7 @@ def _start_poses(case: Case, v: float) -> tuple[np.ndarray, np.ndarray, float]:
     for _ in range(20):  # back off until the robots' discs are apart
         p0 = np.array([-v * lead, 0.0])
         p1 = c1 - v1 * lead * heading1
-        if np.hypot(*(p1 - p0)) > 2 * C.BODY_RADIUS + 0.02:
+        if np.hypot(*(p1 - p0)) > 2 * robot_model().body_radius + 0.02:
             break
         lead *= 1.5
     else:
@@ -782,7 +789,8 @@ def stress(
             err = np.arctan2(-pose[:, 1], -pose[:, 0]) - pose[:, 2]
             err = np.arctan2(np.sin(err), np.cos(err))
             w = np.clip(3.0 * err, -6.0, 6.0)
-            cmd_l, cmd_r = 1.2 - w * C.HALF_WHEEL_BASE, 1.2 + w * C.HALF_WHEEL_BASE
+            b = robot_model().half_wheel_base
+            cmd_l, cmd_r = 1.2 - w * b, 1.2 + w * b
             scale = np.maximum(1.0, np.maximum(np.abs(cmd_l), np.abs(cmd_r)) / 1.2)
             world.set_wheel_speeds(cmd_l / scale, cmd_r / scale)
         else:
@@ -897,7 +905,7 @@ def pile(
     trace: int = 0,
 ) -> dict[str, Any]:
     """``n`` robots in a ring (inner radius about n x 5 cm, at least 0.6 m; 0.6 m wide; no two
-    closer than their discs, 2 x BODY_RADIUS + 2 cm), each
+    closer than their discs, 2 x body_radius + 2 cm), each
     headed at the centre (+-20 deg) at 80-100 % of ``v``, driving straight for ``seconds``
     with the command held: the stress scene's centre phase in miniature. Counts tips past 60 deg
     (each robot's crossings of 0.5 uprightness) over ``trials`` seeded draws."""
@@ -916,10 +924,10 @@ def pile(
     for _ in range(trials):
         radius = max(0.6, n * 0.32 / (2 * math.pi))
         xy: list[np.ndarray] = []
-        while len(xy) < n:  # rejection: discs of BODY_RADIUS + 1 cm apart
+        while len(xy) < n:  # rejection: discs of body_radius + 1 cm apart
             a, r = rng.uniform(0, 2 * math.pi), radius + rng.uniform(0, 0.6)
             p = np.array([r * math.cos(a), r * math.sin(a)])
-            if all(np.hypot(*(p - q)) > 2 * C.BODY_RADIUS + 0.02 for q in xy):
+            if all(np.hypot(*(p - q)) > 2 * robot_model().body_radius + 0.02 for q in xy):
                 xy.append(p)
         pos = np.array(xy)
         yaw = np.arctan2(-pos[:, 1], -pos[:, 0]) + rng.uniform(-0.35, 0.35, n)

@@ -86,7 +86,7 @@ from pettingzoo import ParallelEnv  # type: ignore[import-untyped]  # no type hi
 from cyber_rodent.colony_baseline import BaselinePolicy, baseline_policy  # noqa: F401
 from cyber_rodent.observations import nearest_frame
 from cyber_rodent.rl_env import EnvConfig, FieldEnv, action_names, action_space
-from cyber_rodent.tasks.episode import TaskEpisode, task_rules
+from cyber_rodent.tasks.episode import EpisodeOptions, TaskEpisode, task_rules
 from cyber_rodent.tasks.rewards import RewardScales
 from cyber_rodent.tasks.spec import SURVIVAL, Field, task_names, task_spec
 from cyber_rodent.validation import check_integer, choice, number
@@ -185,9 +185,13 @@ class ColonyEnv(FieldEnv, ParallelEnv):  # type: ignore[misc]  # pettingzoo has 
             spec,
             self.survival,
             functools.partial(nearest_frame, self.vision),
-            scales=RewardScales(dock_reward=self.dock_reward, mate_reward=self.mate_reward),
-            episode_steps=spec.episode_steps if config.max_cycles is None else config.max_cycles,
-            max_range=self.max_range,
+            EpisodeOptions(
+                scales=RewardScales(dock_reward=self.dock_reward, mate_reward=self.mate_reward),
+                episode_steps=(
+                    spec.episode_steps if config.max_cycles is None else config.max_cycles
+                ),
+                max_range=self.max_range,
+            ),
         )
         switches = spec.switches
         self.possible_agents = [agent_name(i) for i in range(self.task_episode.k)]

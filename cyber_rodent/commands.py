@@ -7,11 +7,15 @@ hand-written reactive policy all index the same commands. Changing the set (orde
 invalidates trained action values, hence :data:`COMMAND_SET_VERSION`.
 
 Speeds are wheel rim speeds in m/s (what :meth:`cyber_rodent.world.World.set_wheel_speeds` and
-:meth:`cyber_rodent.survival.SurvivalWorld.step` take), well inside the motor limit
-(``constants.TOP_SPEED`` = 1.3 m/s). They are chosen for docking and mating, which need slow,
-precise approaches: at the default 0.2 s control step and 0.5 m/s the robot moves 10 cm per
-step, about the width of a pack (8 cm) and its electrode ring, and a spin turns 0.5 rad (29°)
-per step.
+:meth:`cyber_rodent.survival.SurvivalWorld.step` take), well inside the Cyber Rodent's motor
+limit (:data:`DESIGN_TOP_SPEED` = 1.3 m/s). They are chosen for docking and mating, which need
+slow, precise approaches: at the default 0.2 s control step and 0.5 m/s the robot moves 10 cm
+per step, about the width of a pack (8 cm) and its electrode ring, and a spin turns 0.5 rad
+(29°) per step.
+
+Another robot (``WorldConfig.robot``) drives the same commands scaled by its top speed over the
+Cyber Rodent's (:func:`command_speeds`): the same share of what its motors can do. For the
+paper's robot the factor is exactly 1.
 """
 
 from __future__ import annotations
@@ -20,11 +24,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cyber_rodent import constants as C
+from cyber_rodent.robot import RobotModel
 from cyber_rodent.validation import check_number
 
 #: Bumped whenever the command set below changes; stored with trained action values.
 COMMAND_SET_VERSION = 1
+#: m/s, the top speed the command set was designed for: the Cyber Rodent's (its model's
+#: ``top_speed``, read from ``assets/mjcf/cyber_rodent.xml``; a test checks the two agree).
+DESIGN_TOP_SPEED = 1.3
 
 
 @dataclass(frozen=True)
@@ -45,7 +52,7 @@ class WheelCommand:
         # No field defaults (a command names its speeds), so the rule is checked here.
         for side in ("left", "right"):
             name = f"WheelCommand {self.name!r}: {side}"
-            check_number(name, getattr(self, side), -C.TOP_SPEED, C.TOP_SPEED)
+            check_number(name, getattr(self, side), -DESIGN_TOP_SPEED, DESIGN_TOP_SPEED)
 
 
 #: The command set, in action-index order. Forward motion dominates because docking (Forage)
@@ -67,6 +74,23 @@ COMMAND_NAMES: tuple[str, ...] = tuple(c.name for c in WHEEL_COMMANDS)
 #: (N_COMMANDS, 2) left/right speeds in m/s, read-only (indexed in the hot loop).
 COMMAND_SPEEDS: np.ndarray = np.array([(c.left, c.right) for c in WHEEL_COMMANDS], dtype=float)
 COMMAND_SPEEDS.setflags(write=False)
+
+
+def motor_scale(robot: RobotModel) -> float:
+    """``robot.top_speed / DESIGN_TOP_SPEED``: what a speed chosen for the Cyber Rodent (a
+    command, the survival reflex's spin) is multiplied by on ``robot``; exactly 1 for it."""
+    return robot.top_speed / DESIGN_TOP_SPEED
+
+
+def command_speeds(robot: RobotModel) -> np.ndarray:
+    """(N_COMMANDS, 2) the command set for ``robot``, m/s, read-only: :data:`COMMAND_SPEEDS`
+    times :func:`motor_scale` (the paper's robot: the set itself)."""
+    factor = motor_scale(robot)
+    if factor == 1.0:
+        return COMMAND_SPEEDS
+    speeds = COMMAND_SPEEDS * factor
+    speeds.setflags(write=False)
+    return speeds
 
 
 def command_index(name: str) -> int:

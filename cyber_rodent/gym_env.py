@@ -80,8 +80,8 @@ name                                     raw                    normalised
 ``recharge_steps``                       [0, 40] control steps  ``recharge_steps / 40``
 =======================================  =====================  ================================
 
-The range sensors are those of ``constants.RANGE_SENSORS`` in that order; the nearest LED, face
-and pack are the vision's (``camera.max_range`` is the field's diagonal by default).
+The range sensors are the robot's (``RobotModel.range_sensors``) in that order; the nearest LED,
+face and pack are the vision's (``camera.max_range`` is the field's diagonal by default).
 
 Actions:
 
@@ -90,7 +90,7 @@ Actions:
   spin_left, spin_right, reverse, stop). Survival: ``MultiDiscrete([8, 2])``, the command and
   the recharge decision (1 = keep recharging while docked, 0 = stop now).
 * ``action="continuous"``: ``Box((2,), float32)``, left and right wheel rim speeds in m/s within
-  ±``max_wheel_speed`` (default 1.0 m/s, inside the motor limit ``constants.TOP_SPEED`` = 1.3;
+  ±``max_wheel_speed`` (default 1.0 m/s, inside the motor limit, the robot's ``top_speed`` = 1.3;
   the fastest command drives 0.5). Survival adds the recharge decision in [−1, 1] (keep
   recharging above 0), so the whole action lies in [−1, 1] as Gymnasium's and
   Stable-Baselines3's checkers recommend. ``env.unwrapped.action_names`` names the entries.
@@ -172,7 +172,7 @@ from cyber_rodent.rl_env import (
     check_max_wheel_speed,
     decode_action,
 )
-from cyber_rodent.tasks.episode import TaskEpisode, task_rules
+from cyber_rodent.tasks.episode import EpisodeOptions, TaskEpisode, task_rules
 from cyber_rodent.tasks.rewards import EpisodeConfig, RewardScales
 from cyber_rodent.tasks.spec import BUILT_IN, SURVIVAL, TaskSpec, task_names, task_spec
 from cyber_rodent.validation import boolean, choice
@@ -251,7 +251,7 @@ class CyberRodentEnv(FieldEnv, gym.Env[Observation, Any]):
             pixels), ``survival`` (the rules; Forage, Mate and Search replace the energy fields
             by endless energy, as the behaviour episodes do), ``episode``, ``partner_policy``,
             ``max_wheel_speed``, ``render_mode``, ``render_width``, ``render_height``,
-            ``backend``.
+            ``backend``, ``robot`` (the body: ``cyber_rodent.robot.ROBOTS``).
 
     Attributes:
         config: the options.
@@ -326,14 +326,16 @@ class CyberRodentEnv(FieldEnv, gym.Env[Observation, Any]):
             spec,
             self.survival,
             self._nearest,
-            reward=config.reward,
-            scales=RewardScales.from_episode(episode) if shaped else RewardScales(),
-            rewarded=1,
-            episode_steps=episode.max_steps,
-            max_start_draws=episode.max_start_draws,
-            collisions=True,
-            track_cells=spec.measure == "coverage_cells",
-            max_range=self.max_range,
+            EpisodeOptions(
+                reward=config.reward,
+                scales=RewardScales.from_episode(episode) if shaped else RewardScales(),
+                rewarded=1,
+                episode_steps=episode.max_steps,
+                max_start_draws=episode.max_start_draws,
+                collisions=True,
+                track_cells=spec.measure == "coverage_cells",
+                max_range=self.max_range,
+            ),
         )
         self.rewards = self.task_episode.rewards
         self._wheels = self.task_episode.wheels
@@ -353,7 +355,7 @@ class CyberRodentEnv(FieldEnv, gym.Env[Observation, Any]):
         else:
             self.observation_space = state_space
         n_robots = spec.field.robots
-        self._states = np.zeros((n_robots, N_OBSERVATIONS), dtype=np.float32)
+        self._states = np.zeros((n_robots, len(self.observation_names)), dtype=np.float32)
         self._started = False
 
     @property

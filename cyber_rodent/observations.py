@@ -1,10 +1,13 @@
 """What one robot observes in every task interface, defined once.
 
-The observation is a flat vector of 21 named entries (:data:`OBSERVATIONS`, in vector order):
-8 IR range readings, the bearing, distance and visibility of the nearest green LED, red face and
-blue battery pack, the robot's energy, its LED, whether it is docked, and the control steps
-recharged in the current docking. This table is the one place that says, for each entry, its
-name, its physical unit, its bounds and how it is normalised; the environments
+The observation is a flat vector of named entries, 21 for the Cyber Rodent
+(:data:`OBSERVATIONS`, in vector order): its 8 IR range readings, the bearing, distance and
+visibility of the nearest green LED, red face and blue battery pack, the robot's energy, its LED,
+whether it is docked, and the control steps recharged in the current docking. Another robot
+(``WorldConfig.robot``) has its own range sensors first and any sensors of other kinds last
+(:func:`observation_table` of its sensor table, ``cyber_rodent.robot``). This table is the
+one place that says, for each entry, its name, its physical unit, its bounds and how it is
+normalised; the environments
 (:mod:`cyber_rodent.gym_env`, :mod:`cyber_rodent.colony_env`) and the dm-control tasks
 (:mod:`cyber_rodent.tasks.base`) build their observation spaces and their observations from it
 (through :meth:`cyber_rodent.tasks.episode.TaskEpisode.observations`), for every task alike.
@@ -66,12 +69,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cache
 from typing import Any, NamedTuple
 
 import numpy as np
 from gymnasium import spaces
 
-from cyber_rodent import constants as C
+from cyber_rodent.robot import CYBER_RODENT_SENSORS, SENSOR_KINDS, SensorRow
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
 from cyber_rodent.validation import check_choice
 from cyber_rodent.vision import (
@@ -87,9 +91,10 @@ from cyber_rodent.vision import (
 #: or in physical units.
 OBSERVATION_KINDS = ("normalised", "raw")
 
-#: How an entry is bounded and normalised (see the module docstring).
-RANGE, BEARING, DISTANCE, FLAG, ENERGY, RECHARGE_STEPS = (
-    "range", "bearing", "distance", "flag", "energy", "recharge_steps"
+#: How an entry is bounded and normalised (see the module docstring). SENSOR: a sensor of a kind
+#: other than ``range`` (``cyber_rodent.robot.SENSOR_KINDS``), bounded by its row's limit.
+RANGE, BEARING, DISTANCE, FLAG, ENERGY, RECHARGE_STEPS, SENSOR = (
+    "range", "bearing", "distance", "flag", "energy", "recharge_steps", "sensor"
 )  # fmt: skip
 
 
@@ -101,47 +106,123 @@ class ObservationEntry:
         name: its name (``observation_names``).
         unit: the unit of its raw value (``observation_units``).
         quantity: what bounds and normalises it: :data:`RANGE`, :data:`BEARING`,
-            :data:`DISTANCE`, :data:`FLAG`, :data:`ENERGY` or :data:`RECHARGE_STEPS`.
+            :data:`DISTANCE`, :data:`FLAG`, :data:`ENERGY`, :data:`RECHARGE_STEPS` or
+            :data:`SENSOR`.
+        limit: a :data:`SENSOR` entry's bound (its row's ``limit``): raw [0, limit], or
+            [-limit, limit] if ``signed``; normalised linearly onto [0, 1] (or [-1, 1]).
+        signed: a :data:`SENSOR` entry may be negative.
     """
 
     name: str
     unit: str
     quantity: str
+    limit: float = 0.0
+    signed: bool = False
 
 
 _TARGETS = (("led", LED), ("face", FACE), ("battery", BATTERY))
-#: The observation vector's entries, in order.
-OBSERVATIONS: tuple[ObservationEntry, ...] = (
-    *(ObservationEntry(name, "m", RANGE) for name, _, _ in C.RANGE_SENSORS),
-    *(
-        entry
-        for target, _ in _TARGETS
-        for entry in (
-            ObservationEntry(f"{target}_bearing", "rad", BEARING),
-            ObservationEntry(f"{target}_distance", "m", DISTANCE),
-            ObservationEntry(f"{target}_visible", "flag", FLAG),
-        )
-    ),
+#: The robot's own entries, after the sensors and the targets.
+_OWN: tuple[ObservationEntry, ...] = (
     ObservationEntry("energy", "energy", ENERGY),
     ObservationEntry("led_on", "flag", FLAG),
     ObservationEntry("docked", "flag", FLAG),
     ObservationEntry("recharge_steps", "control steps", RECHARGE_STEPS),
 )
-OBSERVATION_NAMES: tuple[str, ...] = tuple(entry.name for entry in OBSERVATIONS)
-OBSERVATION_UNITS: tuple[str, ...] = tuple(entry.unit for entry in OBSERVATIONS)
-N_OBSERVATIONS = len(OBSERVATIONS)
-_FIRST_OWN = C.N_RANGE + 3 * len(_TARGETS)  # the first of the robot's own entries (energy)
-#: The same entries grouped as the dm-control tasks name them (:mod:`cyber_rodent.tasks.base`):
-#: the ranges, each target's bearing, distance and visibility, then the robot's own entries.
-#: A group is its name and its columns of the vector: a slice, or one column (a scalar).
-OBSERVATION_GROUPS: tuple[tuple[str, slice | int], ...] = (
-    ("range", slice(0, C.N_RANGE)),
-    *(
-        (f"nearest_{target}", slice(C.N_RANGE + 3 * k, C.N_RANGE + 3 * k + 3))
-        for k, (target, _) in enumerate(_TARGETS)
-    ),
-    *((OBSERVATIONS[i].name, i) for i in range(_FIRST_OWN, N_OBSERVATIONS)),
-)
+
+
+@dataclass(frozen=True)
+class ObservationTable:
+    """One kind of robot's observation vector: its range sensors, the three nearest targets,
+    its own four entries, then its sensors of other kinds (``RobotModel.other_sensors``).
+
+    Attributes:
+        entries: every entry, in vector order.
+        n_range: how many range sensors come first.
+    """
+
+    entries: tuple[ObservationEntry, ...]
+    n_range: int
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(entry.name for entry in self.entries)
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        return tuple(entry.unit for entry in self.entries)
+
+    @property
+    def size(self) -> int:
+        return len(self.entries)
+
+    @property
+    def first_own(self) -> int:
+        """The column of the first of the robot's own entries (energy)."""
+        return self.n_range + 3 * len(_TARGETS)
+
+    @property
+    def first_sensor(self) -> int:
+        """The column of the first sensor of a kind other than ``range``."""
+        return self.first_own + len(_OWN)
+
+    @property
+    def groups(self) -> tuple[tuple[str, slice | int], ...]:
+        """The entries grouped as the dm-control tasks name them (:mod:`cyber_rodent.tasks.
+        base`): the ranges, each target's bearing, distance and visibility, then every other
+        entry on its own. A group is its name and its columns: a slice, or one column."""
+        n = self.n_range
+        return (
+            ("range", slice(0, n)),
+            *(
+                (f"nearest_{target}", slice(n + 3 * k, n + 3 * k + 3))
+                for k, (target, _) in enumerate(_TARGETS)
+            ),
+            *((self.entries[i].name, i) for i in range(self.first_own, self.size)),
+        )
+
+
+@cache
+def observation_table(sensors: tuple[SensorRow, ...] = CYBER_RODENT_SENSORS) -> ObservationTable:
+    """The observation table of a robot with the sensor table ``sensors``
+    (``RobotModel.sensors``; the default: the Cyber Rodent's)."""
+    ranges = [row for row in sensors if row.kind == "range"]
+    others = [row for row in sensors if row.kind != "range"]
+    entries = (
+        *(ObservationEntry(row.name, "m", RANGE) for row in ranges),
+        *(
+            entry
+            for target, _ in _TARGETS
+            for entry in (
+                ObservationEntry(f"{target}_bearing", "rad", BEARING),
+                ObservationEntry(f"{target}_distance", "m", DISTANCE),
+                ObservationEntry(f"{target}_visible", "flag", FLAG),
+            )
+        ),
+        *_OWN,
+        *(
+            ObservationEntry(
+                row.name,
+                SENSOR_KINDS[row.kind].unit,
+                SENSOR,
+                float(row.limit),
+                SENSOR_KINDS[row.kind].signed,
+            )
+            for row in others
+        ),
+    )
+    return ObservationTable(tuple(entries), len(ranges))
+
+
+#: The Cyber Rodent's table (the paper's robot); a world's is ``observation_table(world.robot.
+#: sensors)``.
+PAPER_TABLE = observation_table()
+#: The Cyber Rodent's observation vector's entries, in order.
+OBSERVATIONS: tuple[ObservationEntry, ...] = PAPER_TABLE.entries
+OBSERVATION_NAMES: tuple[str, ...] = PAPER_TABLE.names
+OBSERVATION_UNITS: tuple[str, ...] = PAPER_TABLE.units
+N_OBSERVATIONS = PAPER_TABLE.size
+#: The same entries grouped as the dm-control tasks name them (:attr:`ObservationTable.groups`).
+OBSERVATION_GROUPS: tuple[tuple[str, slice | int], ...] = PAPER_TABLE.groups
 
 
 class ObservationBounds(NamedTuple):
@@ -191,20 +272,26 @@ class ObservationLimits:
     """What the bounds of one robot's observation depend on.
 
     Attributes:
-        range_max: (8,) each range sensor's range, m (``World.range_max[0]``).
+        range_max: (n_range,) each range sensor's range, m (``World.range_max[0]``).
         max_range: the camera's range, m (an unseen target's distance).
         max_energy: the rules' maximum energy.
         max_recharge_steps: the rules' longest recharge, control steps.
+        table: the robot's observation table (default: the Cyber Rodent's).
     """
 
     range_max: np.ndarray
     max_range: float
     max_energy: float
     max_recharge_steps: float
+    table: ObservationTable = PAPER_TABLE
 
     @classmethod
     def of(
-        cls, range_max: np.ndarray, max_range: float, survival: SurvivalConfig
+        cls,
+        range_max: np.ndarray,
+        max_range: float,
+        survival: SurvivalConfig,
+        table: ObservationTable = PAPER_TABLE,
     ) -> ObservationLimits:
         """The limits of a world's sensors, a camera's range and the rules ``survival``."""
         return cls(
@@ -212,13 +299,15 @@ class ObservationLimits:
             float(max_range),
             float(survival.max_energy),
             float(survival.max_recharge_steps),
+            table,
         )
 
     def intervals(self) -> ObservationBounds:
         """The raw observation's bounds, entry by entry, float64 (the dm-control specs')."""
-        low = np.zeros(N_OBSERVATIONS)
-        high = np.ones(N_OBSERVATIONS)
-        for i, entry in enumerate(OBSERVATIONS):
+        size = self.table.size
+        low = np.zeros(size)
+        high = np.ones(size)
+        for i, entry in enumerate(self.table.entries):
             low[i], high[i] = self._interval(i, entry)
         return ObservationBounds(low, high)
 
@@ -230,15 +319,16 @@ class ObservationLimits:
     def scale(self) -> ObservationScale:
         """The normalisation: each entry's bounds onto [0, 1], the ranges reversed
         (proximity), the bearings onto [−1, 1] (0 ahead)."""
-        zero = np.zeros(N_OBSERVATIONS)
-        one = np.ones(N_OBSERVATIONS)
-        low = np.zeros(N_OBSERVATIONS, dtype=np.float32)
-        high = np.ones(N_OBSERVATIONS, dtype=np.float32)
-        for i, entry in enumerate(OBSERVATIONS):
+        size = self.table.size
+        zero = np.zeros(size)
+        one = np.ones(size)
+        low = np.zeros(size, dtype=np.float32)
+        high = np.ones(size, dtype=np.float32)
+        for i, entry in enumerate(self.table.entries):
             raw_low, raw_high = self._interval(i, entry)
             if entry.quantity == RANGE:
                 zero[i], one[i] = raw_high, raw_low
-            elif entry.quantity == BEARING:
+            elif entry.quantity == BEARING or (entry.quantity == SENSOR and entry.signed):
                 zero[i], one[i] = 0.0, raw_high
                 low[i] = -1.0
             else:
@@ -263,6 +353,8 @@ class ObservationLimits:
             return 0.0, self.max_energy
         if quantity == RECHARGE_STEPS:
             return 0.0, self.max_recharge_steps
+        if quantity == SENSOR:
+            return (-entry.limit if entry.signed else 0.0), entry.limit
         return 0.0, 1.0  # a flag
 
 
@@ -292,28 +384,33 @@ def robot_observations(
     max_range: float,
     dtype: type[np.floating[Any]] = np.float32,
 ) -> np.ndarray:
-    """(n_robots, :data:`N_OBSERVATIONS`): every robot's raw observation, a fresh array.
+    """(n_robots, table size): every robot's raw observation, a fresh array, in the order of
+    its robot's table (:func:`observation_table`; the Cyber Rodent's: :data:`N_OBSERVATIONS`).
 
     Every value is computed in float64 and stored as ``dtype``: float32 for the Gymnasium and
     PettingZoo environments, float64 for the dm-control tasks (:data:`OBSERVATION_GROUPS`). An
     unseen target has bearing 0, distance ``max_range`` and visible 0.
     """
     world = survival.world
-    obs = np.empty((world.config.n_robots, N_OBSERVATIONS), dtype=dtype)
-    obs[:, : C.N_RANGE] = world.range_readings()
+    table = observation_table(world.robot.sensors)
+    n_range = table.n_range
+    obs = np.empty((world.config.n_robots, table.size), dtype=dtype)
+    obs[:, :n_range] = world.range_readings()
     for k, (_, cls) in enumerate(_TARGETS):
-        col = C.N_RANGE + 3 * k
+        col = n_range + 3 * k
         visible = frame.visible[:, cls]
         obs[:, col] = np.where(visible, frame.bearing[:, cls], 0.0)
         obs[:, col + 1] = np.where(
             visible, np.minimum(frame.distance[:, cls], max_range), max_range
         )
         obs[:, col + 2] = visible
-    col = _FIRST_OWN
+    col = table.first_own
     obs[:, col] = survival.energy
     obs[:, col + 1] = world.led_on
     obs[:, col + 2] = survival.docked
     obs[:, col + 3] = survival.recharge_steps
+    if table.size > table.first_sensor:
+        obs[:, table.first_sensor :] = world.sensor_values()
     return obs
 
 
@@ -354,8 +451,12 @@ __all__ = [
     "ObservationEntry",
     "ObservationLimits",
     "ObservationScale",
+    "ObservationTable",
+    "PAPER_TABLE",
+    "SENSOR",
     "check_observation",
     "nearest_frame",
     "observation_bounds",
+    "observation_table",
     "robot_observations",
 ]

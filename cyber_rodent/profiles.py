@@ -246,7 +246,7 @@ def _wheel_ids(world: World) -> tuple[np.ndarray, np.ndarray]:
         [
             [
                 mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, C.robot_prefix(i) + side)
-                for side in ("left_wheel_contact", "right_wheel_contact")
+                for side in (world.robot.parts.left_wheel_geom, world.robot.parts.right_wheel_geom)
             ]
             for i in range(n)
         ],

@@ -23,18 +23,17 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from cyber_rodent import constants as C
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, check_backend
-from cyber_rodent.commands import COMMAND_SPEEDS, N_COMMANDS
+from cyber_rodent.commands import COMMAND_SPEEDS, DESIGN_TOP_SPEED, N_COMMANDS, command_speeds
 from cyber_rodent.observations import (
     OBSERVATION_KINDS,
-    OBSERVATION_NAMES,
-    OBSERVATION_UNITS,
     ObservationBounds,
     ObservationLimits,
     ObservationScale,
+    observation_table,
 )
 from cyber_rodent.render import FieldRenderer, check_image_size
+from cyber_rodent.robot import robot_names
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
 from cyber_rodent.tasks.episode import TaskEpisode
 from cyber_rodent.tasks.spec import Field
@@ -62,7 +61,11 @@ class EnvConfig:
         vision: ``"geometric"`` (default) or ``"rendered"``.
         camera: the omni camera (None: :class:`CameraConfig`'s defaults).
         survival: the survival rules (None: the paper's).
-        max_wheel_speed: bound of the continuous wheel speeds, m/s, in (0, 1.3].
+        max_wheel_speed: bound of the continuous wheel speeds, m/s, in (0, 1.3]; with
+            continuous actions, at most the robot's top speed.
+        robot: the robots' kind (``WorldConfig.robot``: ``cyber_rodent``, the default, or
+            another of ``cyber_rodent.robot.ROBOTS``); its sensor table gives the
+            observation, its top speed the discrete commands (``commands.command_speeds``).
         render_mode: None or ``"rgb_array"`` (the top-down view).
         render_width, render_height: size of a rendered image, px.
         backend: ``"numba"`` or ``"numpy"`` kernels (the same trajectories).
@@ -76,11 +79,12 @@ class EnvConfig:
     vision: str = choice("geometric", PROVIDER_NAMES)
     camera: CameraConfig | None = None
     survival: SurvivalConfig | None = None
-    max_wheel_speed: float = number(DEFAULT_MAX_WHEEL_SPEED, 0.0, C.TOP_SPEED, low_open=True)
+    max_wheel_speed: float = number(DEFAULT_MAX_WHEEL_SPEED, 0.0, DESIGN_TOP_SPEED, low_open=True)
     render_mode: str | None = None
     render_width: int = 480
     render_height: int = 480
     backend: Backend = DEFAULT_BACKEND
+    robot: str = choice("cyber_rodent", robot_names)
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -118,7 +122,11 @@ def action_names(kind: str, switches: tuple[str, ...]) -> tuple[str, ...]:
 
 
 def decode_action(
-    action: Any, space: spaces.Space[Any], wheels: np.ndarray, switches: np.ndarray
+    action: Any,
+    space: spaces.Space[Any],
+    wheels: np.ndarray,
+    switches: np.ndarray,
+    commands: np.ndarray = COMMAND_SPEEDS,
 ) -> None:
     """Write an action of ``space`` (:func:`action_space`) as wheel speeds and switch states.
 
@@ -127,6 +135,8 @@ def decode_action(
         space: its space.
         wheels: (2,) out: left and right wheel rim speeds, m/s.
         switches: (n_switches,) bool out.
+        commands: (N_COMMANDS, 2) the discrete commands' speeds, m/s (the robot's:
+            :func:`~cyber_rodent.commands.command_speeds`).
 
     Raises:
         ValueError: the action is not in the space (the message says why).
@@ -155,13 +165,14 @@ def decode_action(
         )
     if (flat < 0).any() or (flat >= nvec).any():
         raise ValueError(f"action must lie in {space}, got {action!r}")
-    wheels[:] = COMMAND_SPEEDS[int(flat[0])]
+    wheels[:] = commands[int(flat[0])]
     switches[:] = flat[1:] != 0
 
 
 def check_max_wheel_speed(value: object) -> float:
-    """A continuous action's wheel-speed bound, m/s, in (0, ``TOP_SPEED``]."""
-    return check_number("max_wheel_speed", value, 0.0, C.TOP_SPEED, low_open=True)
+    """A continuous action's wheel-speed bound, m/s, in (0, ``DESIGN_TOP_SPEED``] (the robot's
+    own top speed is checked when its world is built)."""
+    return check_number("max_wheel_speed", value, 0.0, DESIGN_TOP_SPEED, low_open=True)
 
 
 # --- the environments' common part ----------------------------------------------------------------
@@ -205,7 +216,15 @@ class FieldEnv:
         self.render_mode = config.render_mode
         backend = config.backend
         fixed = np.random.default_rng(0)  # construction only; every reset re-draws
-        self.world = World(WorldConfig(n_robots=field.robots, n_packs=field.packs), fixed)
+        world = WorldConfig(n_robots=field.robots, n_packs=field.packs, robot=config.robot)
+        self.world = World(world, fixed)
+        top = self.world.robot.top_speed
+        if config.action == "continuous" and self.max_wheel_speed > top:
+            raise ValueError(
+                f"max_wheel_speed must be in (0, {top:g}] m/s for robot {config.robot!r} (its "
+                f"top speed), got {self.max_wheel_speed:g}"
+            )
+        self.commands = command_speeds(self.world.robot)
         self.survival = SurvivalWorld(self.world, rules, fixed, backend=backend)
         self.camera = config.camera or CameraConfig()
         self.vision = make_provider(
@@ -214,9 +233,10 @@ class FieldEnv:
         self.max_range = float(self.camera.max_range)
         self.metadata = {**self.metadata, "render_fps": 1.0 / rules.control_dt}
         self.dt = rules.control_dt
-        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, rules)
-        self.observation_names = OBSERVATION_NAMES
-        self.observation_units = OBSERVATION_UNITS
+        table = observation_table(self.world.robot.sensors)
+        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, rules, table)
+        self.observation_names = table.names
+        self.observation_units = table.units
         self.observation_bounds: ObservationBounds = limits.bounds()
         self.observation_scale: ObservationScale = limits.scale()
         self.observation_limits = limits
@@ -229,7 +249,7 @@ class FieldEnv:
     def _act(self, robot: int, action: Any, space: spaces.Space[Any], on: np.ndarray) -> None:
         """Robot ``robot``'s action: its wheels, and the switches its action sets (``on`` is a
         buffer of them)."""
-        decode_action(action, space, self.task_episode.wheels[robot], on)
+        decode_action(action, space, self.task_episode.wheels[robot], on, self.commands)
         self.task_episode.set_switches(robot, on)
 
     def _observe(self) -> np.ndarray:

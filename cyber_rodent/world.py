@@ -27,6 +27,7 @@ from dm_control import mjcf
 
 from cyber_rodent import constants as C
 from cyber_rodent.assets import asset_path
+from cyber_rodent.robot import SENSOR_KINDS, RobotModel, SensorRow, robot_model, robot_names
 from cyber_rodent.validation import choice, integer, number, validate_fields
 
 #: Colours of the LED (RGBA). Off is dark green, not invisible: a real LED is still there.
@@ -78,8 +79,12 @@ def _usable_area(field_size: float) -> float:
     return field_size**2
 
 
-def _robot_placement_radius() -> float:
-    return C.BODY_RADIUS + _PLACEMENT_MARGIN
+def _robot_placement_radius(body_radius: float | None = None) -> float:
+    """Robots are placed as discs this big: the robot's clearance disc (``RobotModel.body_radius``;
+    None: the paper's robot) and a margin."""
+    if body_radius is None:
+        body_radius = robot_model().body_radius
+    return body_radius + _PLACEMENT_MARGIN
 
 
 def _pack_placement_radius(pack_gap: float = PACK_GAP) -> float:
@@ -93,8 +98,10 @@ def _pack_wall_margin(pack_gap: float, pack_wall_clearance: float) -> float:
     return max(0.0, C.PACK_RADIUS + pack_wall_clearance - _pack_placement_radius(pack_gap))
 
 
-def _disc_area(n_robots: int, n_packs: int, pack_gap: float = PACK_GAP) -> float:
-    r_robot = _robot_placement_radius()
+def _disc_area(
+    n_robots: int, n_packs: int, pack_gap: float = PACK_GAP, body_radius: float | None = None
+) -> float:
+    r_robot = _robot_placement_radius(body_radius)
     r_pack = _pack_placement_radius(pack_gap)
     return math.pi * (n_robots * r_robot**2 + n_packs * r_pack**2)
 
@@ -127,19 +134,21 @@ def fits(
     field_size: float = C.FIELD_SIZE,
     pack_gap: float = PACK_GAP,
     pack_wall_clearance: float = PACK_WALL_CLEARANCE,
+    body_radius: float | None = None,
 ) -> bool:
     """Do ``n_robots`` robots and ``n_packs`` packs fit a field of side ``field_size`` (m)?
 
     The rule :class:`WorldConfig` applies: every robot's placement disc fits between the
     walls, the packs fit the square their wall clearance leaves them, and all placement discs
     together cover at most the packing density (40 %) of the field, which the placement's
-    rejection sampling can still draw.
+    rejection sampling can still draw. ``body_radius`` is the robots' clearance disc
+    (``RobotModel.body_radius``; None: the paper's robot), as in the functions below.
     """
-    if field_size <= 2 * _robot_placement_radius():
+    if field_size <= 2 * _robot_placement_radius(body_radius):
         return False
     if not _packs_fit(n_packs, pack_gap, pack_wall_clearance, field_size):
         return False
-    area = _disc_area(n_robots, n_packs, pack_gap)
+    area = _disc_area(n_robots, n_packs, pack_gap, body_radius)
     return area <= _usable_area(field_size) * _MAX_PACKING_DENSITY
 
 
@@ -147,11 +156,12 @@ def max_counts(
     pack_gap: float = PACK_GAP,
     pack_wall_clearance: float = PACK_WALL_CLEARANCE,
     field_size: float = C.FIELD_SIZE,
+    body_radius: float | None = None,
 ) -> tuple[int, int]:
     """The largest robot count (with no packs) and pack count (with one robot) that fit a
     field of side ``field_size``."""
     budget = _usable_area(field_size) * _MAX_PACKING_DENSITY
-    r_robot = _robot_placement_radius()
+    r_robot = _robot_placement_radius(body_radius)
     r_pack = _pack_placement_radius(pack_gap)
     max_robots = int(budget / (math.pi * r_robot**2))
     max_packs = int((budget - math.pi * r_robot**2) / (math.pi * r_pack**2))
@@ -165,14 +175,16 @@ def most_robots(
     field_size: float = C.FIELD_SIZE,
     pack_gap: float = PACK_GAP,
     pack_wall_clearance: float = PACK_WALL_CLEARANCE,
+    body_radius: float | None = None,
 ) -> int:
     """The most robots (at most :data:`MAX_ROBOTS`) that fit beside ``n_packs`` packs (0 if
     none, or if the packs themselves do not fit)."""
-    if not fits(1, n_packs, field_size, pack_gap, pack_wall_clearance):
+    r = body_radius
+    if not fits(1, n_packs, field_size, pack_gap, pack_wall_clearance, r):
         return 0
     spare = _usable_area(field_size) * _MAX_PACKING_DENSITY - _disc_area(0, n_packs, pack_gap)
-    count = min(MAX_ROBOTS, int(spare / (math.pi * _robot_placement_radius() ** 2)) + 1)
-    while count > 0 and not fits(count, n_packs, field_size, pack_gap, pack_wall_clearance):
+    count = min(MAX_ROBOTS, int(spare / (math.pi * _robot_placement_radius(r) ** 2)) + 1)
+    while count > 0 and not fits(count, n_packs, field_size, pack_gap, pack_wall_clearance, r):
         count -= 1
     return count
 
@@ -182,14 +194,16 @@ def most_packs(
     field_size: float = C.FIELD_SIZE,
     pack_gap: float = PACK_GAP,
     pack_wall_clearance: float = PACK_WALL_CLEARANCE,
+    body_radius: float | None = None,
 ) -> int:
     """The most packs (at most :data:`MAX_PACKS`) that fit beside ``n_robots`` robots (-1 if
     the robots alone do not fit)."""
-    if not fits(n_robots, 0, field_size, pack_gap, pack_wall_clearance):
+    r = body_radius
+    if not fits(n_robots, 0, field_size, pack_gap, pack_wall_clearance, r):
         return -1
-    spare = _usable_area(field_size) * _MAX_PACKING_DENSITY - _disc_area(n_robots, 0, pack_gap)
+    spare = _usable_area(field_size) * _MAX_PACKING_DENSITY - _disc_area(n_robots, 0, pack_gap, r)
     count = min(MAX_PACKS, int(spare / (math.pi * _pack_placement_radius(pack_gap) ** 2)) + 1)
-    while count > 0 and not fits(n_robots, count, field_size, pack_gap, pack_wall_clearance):
+    while count > 0 and not fits(n_robots, count, field_size, pack_gap, pack_wall_clearance, r):
         count -= 1
     return count
 
@@ -199,20 +213,21 @@ def smallest_field(
     n_packs: int,
     pack_gap: float = PACK_GAP,
     pack_wall_clearance: float = PACK_WALL_CLEARANCE,
+    body_radius: float | None = None,
 ) -> float:
     """The smallest field side (m, rounded up to the centimetre) that holds ``n_robots``
     robots and ``n_packs`` packs (:func:`fits`)."""
     r_pack = _pack_placement_radius(pack_gap)
     need = max(
-        2 * _robot_placement_radius(),
-        math.sqrt(_disc_area(n_robots, n_packs, pack_gap) / _MAX_PACKING_DENSITY),
+        2 * _robot_placement_radius(body_radius),
+        math.sqrt(_disc_area(n_robots, n_packs, pack_gap, body_radius) / _MAX_PACKING_DENSITY),
     )
     if n_packs:
         margin = 2 * _pack_wall_margin(pack_gap, pack_wall_clearance)
         side = math.sqrt(n_packs * math.pi * r_pack**2 / _MAX_PACKING_DENSITY)
         need = max(need, margin + (2 * r_pack if n_packs == 1 else side))
     size = math.ceil(need * 100 - 1e-6) / 100
-    while not fits(n_robots, n_packs, size, pack_gap, pack_wall_clearance):
+    while not fits(n_robots, n_packs, size, pack_gap, pack_wall_clearance, body_radius):
         size = round(size + 0.01, 2)
     return size
 
@@ -283,27 +298,28 @@ def _fit_problem(config: WorldConfig) -> str:
     several arenas), in one line naming the fields and what fits ("" if they fit)."""
     n, k, size = config.robots_per_arena, config.packs_per_arena, config.field_size
     gap, clearance = config.pack_gap, config.pack_wall_clearance
-    if fits(n, k, size, gap, clearance):
+    r = robot_model(config.robot).body_radius
+    if fits(n, k, size, gap, clearance, r):
         return ""
     # With several arenas the counts are each arena's: name them by their fields.
     robots, packs = "n_robots", "n_packs"
     if config.arenas > 1:
         robots, packs = "n_robots / arenas", "n_packs / arenas"
-    need = smallest_field(n, k, gap, clearance)
+    need = smallest_field(n, k, gap, clearance, r)
     if not _packs_fit(k, gap, clearance, size):
-        alone = most_packs(0, size, gap, clearance)
+        alone = most_packs(0, size, gap, clearance, r)
         return (
             f"{packs}={k} packs do not fit in the field_size={size:g} m field with "
             f"pack_gap={gap} m and pack_wall_clearance={clearance} m: at most {max(alone, 0)} "
             f"fit; {n} robots and {k} packs need field_size >= {need:g} m (or a smaller "
             "pack_gap or pack_wall_clearance)"
         )
-    most = most_packs(n, size, gap, clearance)
+    most = most_packs(n, size, gap, clearance, r)
     beside = f"{n} robots with at most {most} packs" if most >= 0 else f"fewer than {n} robots"
     return (
         f"{robots}={n} and {packs}={k} do not fit in the field_size={size:g} m field together "
         f"with pack_gap={gap} m: it holds {beside}, or {k} packs with at most "
-        f"{most_robots(k, size, gap, clearance)} robots; {n} robots and {k} packs need "
+        f"{most_robots(k, size, gap, clearance, r)} robots; {n} robots and {k} packs need "
         f"field_size >= {need:g} m"
     )
 
@@ -368,6 +384,11 @@ class WorldConfig:
             published results ran on, whose teeth also touch other robots' bodies (a fast
             knock could lever a robot onto its back) and whose docking hold has MuJoCo's
             default impedance.
+        robot: the robots' kind, a name of :data:`cyber_rodent.robot.ROBOTS`
+            (``cyber_rodent``, the default, is the paper's robot; ``small_disc`` an e-puck
+            class one; ``docs/extending.md`` §9). Its model (:class:`~cyber_rodent.robot.
+            RobotModel`, :attr:`World.robot`) gives the body, the drive and the sensors;
+            placement and the fit check keep its clearance disc free.
 
     The counts are bounded by :data:`MAX_ROBOTS` and :data:`MAX_PACKS` and by what fits in
     the field (:func:`fits`; with several arenas, what fits in each): the packs alone in the
@@ -391,6 +412,7 @@ class WorldConfig:
     )
     arenas: int = integer(1, 1, MAX_ARENAS, unit="arenas", source="docs/design.md §9.33")
     contacts: str = choice("fixed", CONTACT_MODELS, source="docs/design.md §9.35")
+    robot: str = choice("cyber_rodent", robot_names, source="docs/design.md §4")
 
     def __post_init__(self) -> None:
         validate_fields(self)
@@ -488,6 +510,23 @@ def lay_out_arenas(arena: mjcf.RootElement, field_size: float, arenas: int) -> N
     camera.pos = [camera.pos[0], camera.pos[1], camera.pos[2] * rise]
 
 
+def robot_sensor_name(robot: int, sensor: str) -> str:
+    """Name of robot ``robot``'s sensor ``sensor`` of a kind other than ``range`` in an
+    assembled world (such sensors sit in the world file after every robot's range sensors)."""
+    return f"{C.ROBOT_MODEL_PREFIX}_{robot}_{sensor}"
+
+
+def _detach_sensor(body: mjcf.RootElement, row: SensorRow) -> Any:
+    """Remove ``row``'s sensor from a robot's tree if its file has one; its site element."""
+    sensor = body.find("sensor", row.name)
+    if sensor is not None:
+        sensor.remove()
+    site = body.find("site", row.site_name)
+    if site is None:
+        raise ValueError(f"robot {body.model!r} has no site {row.site_name!r} for {row.name!r}")
+    return site
+
+
 def dock_hold_name(robot: int) -> str:
     """Name of robot ``robot``'s docking-hold weld (an equality constraint of the world)."""
     return f"dock_hold_{robot}"
@@ -500,11 +539,17 @@ def build_mjcf(
     field_size: float = C.FIELD_SIZE,
     arenas: int = 1,
     contacts: str = "fixed",
+    robot: RobotModel | None = None,
 ) -> mjcf.RootElement:
     """The field's MJCF tree with ``n_robots`` robots and ``n_packs`` packs at the origin, in a
     square field of side ``field_size`` (m), or in ``arenas`` such fields side by side
     (:func:`lay_out_arenas`), with the robots' contact model ``contacts``
-    (:attr:`WorldConfig.contacts`)."""
+    (:attr:`WorldConfig.contacts`). The robots are ``robot`` (None: the paper's), each with
+    every sensor of its table: its range sensors in its own tree, any other after all robots'
+    (:func:`robot_sensor_name`)."""
+    robot = robot or robot_model()
+    parts = robot.parts
+    others = robot.other_sensors
     arena = mjcf.from_path(str(asset_path(C.ARENA_XML)))
     arena.option.timestep = timestep
     resize_field(arena, field_size)
@@ -514,16 +559,17 @@ def build_mjcf(
     # 4 robots, 3.0 MB for 100. 1 MB per robot, at least the arena file's 16 MB, leaves a
     # margin of 30 or more; a larger arena costs address space, not memory, until it is used.
     arena.size.memory = f"{max(16, n_robots)}M"
-    robot_file = str(asset_path(C.ROBOT_XML))
+    robot_file = str(robot.xml_path())
     pack_file = str(asset_path(C.BATTERY_PACK_XML))
     for i in range(n_robots):
-        robot = mjcf.from_path(robot_file)
-        robot.model = f"{C.ROBOT_MODEL_PREFIX}_{i}"
+        body = mjcf.from_path(robot_file)
+        body.model = f"{C.ROBOT_MODEL_PREFIX}_{i}"
+        sites = [_detach_sensor(body, row) for row in others]
         if contacts == "published":
-            for name in (C.CHASSIS_GEOM, C.TEETH_GEOM):
-                geom = robot.find("geom", name)
+            for name in (parts.chassis_geom, parts.teeth_geom):
+                geom = body.find("geom", name)
                 geom.contype, geom.conaffinity = C.BODY_BIT, C.BODY_BIT
-        frame = arena.attach(robot)
+        frame = arena.attach(body)
         frame.add("freejoint")
         # Docking hold (cyber_rodent/survival.py): an inactive weld of the chassis to
         # the world. The survival mechanics switch it on while the robot recharges (setting
@@ -532,11 +578,16 @@ def build_mjcf(
         hold = arena.equality.add(
             "weld",
             name=dock_hold_name(i),
-            body1=robot.find("body", C.ROBOT_ROOT_BODY),
+            body1=body.find("body", parts.root_body),
             active=False,
         )
         if contacts == "fixed":
             hold.solimp = DOCK_HOLD_SOLIMP
+        # Sensors of kinds other than range go after every robot's range sensors, so those
+        # stay one contiguous block of sensordata (the hot path reads it as one slice).
+        for row, site in zip(others, sites, strict=True):
+            element = SENSOR_KINDS[row.kind].element
+            arena.sensor.add(element, name=robot_sensor_name(i, row.name), site=site)
     for j in range(n_packs):
         pack = mjcf.from_path(pack_file)
         pack.model = f"{C.PACK_MODEL_PREFIX}_{j}"
@@ -553,6 +604,7 @@ class World:
         rng: generator for the initial placement; :meth:`reset` takes its own.
 
     Attributes:
+        robot: the robots' model (``config.robot``): body, drive and sensor table.
         robot_arena: (n_robots,) int, the arena each robot is in: robots in contiguous blocks
             of ``n_robots / arenas`` (robot r in arena r // (n_robots / arenas)); all 0 in the
             paper's one-arena world.
@@ -564,6 +616,7 @@ class World:
     def __init__(self, config: WorldConfig | None = None, rng: np.random.Generator | None = None):
         self.config = config or WorldConfig()
         cfg = self.config
+        self.robot: RobotModel = robot_model(cfg.robot)
         self.mjcf_model = build_mjcf(
             cfg.n_robots,
             cfg.n_packs,
@@ -571,6 +624,7 @@ class World:
             cfg.field_size,
             cfg.arenas,
             cfg.contacts,
+            self.robot,
         )
         # dm_control evaluates the model once as compiled, every robot stacked at the origin
         # until reset() places them: with contacts on, each robot would touch every other
@@ -593,6 +647,7 @@ class World:
     def _index(self) -> None:
         m = self.model
         n = self.config.n_robots
+        robot, parts = self.robot, self.robot.parts
 
         def obj_id(kind: mujoco.mjtObj, name: str) -> int:
             idx = int(mujoco.mj_name2id(m, kind, name))
@@ -607,6 +662,7 @@ class World:
             return slice(int(arr[0]), int(arr[0]) + len(arr))
 
         sensor_adr = []
+        other_adr = []
         motor_ids = []
         self.root_qpos_adr = np.empty(n, dtype=np.int64)
         self.root_qvel_adr = np.empty(n, dtype=np.int64)
@@ -619,28 +675,34 @@ class World:
         self.camera_site = np.empty(n, dtype=np.int64)
         for i in range(n):
             p = C.robot_prefix(i)
-            for name, _, _ in C.RANGE_SENSORS:
-                sid = obj_id(mujoco.mjtObj.mjOBJ_SENSOR, p + name)
+            for row in robot.range_sensors:
+                sid = obj_id(mujoco.mjtObj.mjOBJ_SENSOR, p + row.name)
                 sensor_adr.append(int(m.sensor_adr[sid]))
+            for row in robot.other_sensors:
+                sid = obj_id(mujoco.mjtObj.mjOBJ_SENSOR, robot_sensor_name(i, row.name))
+                other_adr.append(int(m.sensor_adr[sid]) + SENSOR_KINDS[row.kind].component)
             motor_ids += [
-                obj_id(mujoco.mjtObj.mjOBJ_ACTUATOR, p + C.LEFT_MOTOR),
-                obj_id(mujoco.mjtObj.mjOBJ_ACTUATOR, p + C.RIGHT_MOTOR),
+                obj_id(mujoco.mjtObj.mjOBJ_ACTUATOR, p + parts.left_motor),
+                obj_id(mujoco.mjtObj.mjOBJ_ACTUATOR, p + parts.right_motor),
             ]
-            self.chassis_body[i] = obj_id(mujoco.mjtObj.mjOBJ_BODY, p + C.ROBOT_ROOT_BODY)
+            self.chassis_body[i] = obj_id(mujoco.mjtObj.mjOBJ_BODY, p + parts.root_body)
             root = int(m.body_jntadr[m.body_rootid[self.chassis_body[i]]])
             if root < 0 or m.jnt_type[root] != mujoco.mjtJoint.mjJNT_FREE:
                 raise RuntimeError(f"robot {i} chassis has no free joint")
             self.root_qpos_adr[i] = m.jnt_qposadr[root]
             self.root_qvel_adr[i] = m.jnt_dofadr[root]
-            self.led_geom[i] = obj_id(mujoco.mjtObj.mjOBJ_GEOM, p + C.LED_GEOM)
-            self.face_geom[i] = obj_id(mujoco.mjtObj.mjOBJ_GEOM, p + C.FACE_GEOM)
-            self.teeth_geom[i] = obj_id(mujoco.mjtObj.mjOBJ_GEOM, p + C.TEETH_GEOM)
-            self.chassis_geom[i] = obj_id(mujoco.mjtObj.mjOBJ_GEOM, p + C.CHASSIS_GEOM)
-            self.ir_port_site[i] = obj_id(mujoco.mjtObj.mjOBJ_SITE, p + C.IR_PORT_SITE)
-            self.camera_site[i] = obj_id(mujoco.mjtObj.mjOBJ_SITE, p + C.CAMERA_MOUNT_SITE)
+            self.led_geom[i] = obj_id(mujoco.mjtObj.mjOBJ_GEOM, p + parts.led_geom)
+            self.face_geom[i] = obj_id(mujoco.mjtObj.mjOBJ_GEOM, p + parts.face_geom)
+            self.teeth_geom[i] = obj_id(mujoco.mjtObj.mjOBJ_GEOM, p + parts.teeth_geom)
+            self.chassis_geom[i] = obj_id(mujoco.mjtObj.mjOBJ_GEOM, p + parts.chassis_geom)
+            self.ir_port_site[i] = obj_id(mujoco.mjtObj.mjOBJ_SITE, p + parts.ir_port_site)
+            self.camera_site[i] = obj_id(mujoco.mjtObj.mjOBJ_SITE, p + parts.camera_site)
         self._range_slice = contiguous(sensor_adr, "range sensors")
         self._ctrl_slice = contiguous(motor_ids, "wheel motors")
-        self.range_max = np.tile(np.array([r for _, _, r in C.RANGE_SENSORS]), (n, 1))
+        #: (n_robots, n_range) each range sensor's range, m (the robot's sensor table).
+        self.range_max = np.tile(robot.range_limits, (n, 1))
+        # The other sensors' readings: their sensordata addresses, robot-major.
+        self._other_adr = np.asarray(other_adr, dtype=np.int64).reshape(n, -1)
         # Per-robot geom ids (every geom of every body under the chassis): for hiding a robot
         # from its own camera and for attributing contacts to robots.
         self.geom_robot = np.full(m.ngeom, -1, dtype=np.int64)
@@ -682,24 +744,27 @@ class World:
             for a in range(cfg.arenas)
         ]
         self.wall_geom = np.array(walls, dtype=np.int64).reshape(cfg.arenas, len(C.WALL_GEOMS))
-        # Wheel radius and top speed read from the compiled model (they must match constants).
-        wheel_geom = obj_id(mujoco.mjtObj.mjOBJ_GEOM, C.robot_prefix(0) + "left_wheel_contact")
+        # Wheel radius and top speed read from the compiled model (the robot model rounds them
+        # to the micrometre; the commands' conversion keeps the file's own numbers).
+        wheel_geom = obj_id(mujoco.mjtObj.mjOBJ_GEOM, C.robot_prefix(0) + parts.left_wheel_geom)
         self.wheel_radius = float(m.geom_size[wheel_geom, 0])
         self.max_wheel_omega = float(m.actuator_ctrlrange[motor_ids[0], 1])
         # Views into MjData for the hot path.
         self._ctrl: np.ndarray = self.data.ctrl[self._ctrl_slice].reshape(n, 2)
-        self._ranges_raw: np.ndarray = self.data.sensordata[self._range_slice].reshape(n, C.N_RANGE)
+        self._ranges_raw: np.ndarray = self.data.sensordata[self._range_slice].reshape(
+            n, robot.n_range
+        )
 
     # --- placement ---------------------------------------------------------------------------
     def reset(self, rng: np.random.Generator) -> None:
         """Zero the dynamics and place robots and packs at random, without overlap.
 
         Robots get uniformly random headings. Placement uses rejection sampling with clearance
-        ``BODY_RADIUS`` / ``PACK_RADIUS`` plus a margin, from walls and from each other; packs
-        keep ``pack_gap`` between them and ``pack_wall_clearance`` from the walls. With several
-        arenas each is placed by the same rules in turn, arena 0 first (its robots and packs:
-        :attr:`robot_arena`, :attr:`pack_arena`), then every robot's heading. Every pack is
-        active again.
+        the robot's ``body_radius`` / ``PACK_RADIUS`` plus a margin, from walls and from each
+        other; packs keep ``pack_gap`` between them and ``pack_wall_clearance`` from the walls.
+        With several arenas each is placed by the same rules in turn, arena 0 first (its robots
+        and packs: :attr:`robot_arena`, :attr:`pack_arena`), then every robot's heading. Every
+        pack is active again.
         """
         mujoco.mj_resetData(self.model, self.data)
         cfg = self.config
@@ -707,7 +772,7 @@ class World:
         n_arena, k_arena = cfg.robots_per_arena, cfg.packs_per_arena
         radii = np.concatenate(
             [
-                np.full(n_arena, C.BODY_RADIUS + _PLACEMENT_MARGIN),
+                np.full(n_arena, _robot_placement_radius(self.robot.body_radius)),
                 np.full(k_arena, _pack_placement_radius(cfg.pack_gap)),
             ]
         )
@@ -743,7 +808,7 @@ class World:
 
     # --- per-step access ---------------------------------------------------------------------
     def set_wheel_speeds(self, left: np.ndarray, right: np.ndarray) -> None:
-        """Command wheel rim speeds in m/s for all robots; clipped to ±``TOP_SPEED``.
+        """Command wheel rim speeds in m/s for all robots; clipped to the robot's top speed.
 
         Raises:
             ValueError: if any command is NaN or infinite.
@@ -763,12 +828,13 @@ class World:
 
     @property
     def range_sensordata(self) -> np.ndarray:
-        """(n_robots, 8) live view of the rangefinders' raw ``sensordata`` (-1: no hit), for
+        """(n_robots, n_range) live view of the rangefinders' raw ``sensordata`` (-1: no hit), for
         hot loops that saturate the readings themselves (see :meth:`range_readings`)."""
         return self._ranges_raw
 
     def range_readings(self, out: np.ndarray | None = None) -> np.ndarray:
-        """(n_robots, 8) distances in metres, sensor order of ``constants.RANGE_SENSORS``.
+        """(n_robots, n_range) distances in metres, in the order of the robot's range sensors
+        (:attr:`~cyber_rodent.robot.RobotModel.range_sensors`).
 
         A ray that hits nothing within a sensor's range reads that sensor's range (the reading
         saturates, as an IR sensor's does).
@@ -778,6 +844,22 @@ class World:
             out = np.empty_like(raw)
         np.copyto(out, raw)
         np.putmask(out, (raw < 0) | (raw > self.range_max), self.range_max)
+        return out
+
+    def sensor_values(self, out: np.ndarray | None = None) -> np.ndarray:
+        """(n_robots, k) the values of the robot's sensors of every kind but ``range``
+        (:attr:`~cyber_rodent.robot.RobotModel.other_sensors`, in table order), each read by
+        its kind's reader; (n_robots, 0) for a robot with range sensors only."""
+        raw = self.data.sensordata[self._other_adr]
+        if out is None:
+            out = np.empty_like(raw)
+        rows = self.robot.other_sensors
+        for kind in {row.kind for row in rows}:
+            cols = [j for j, row in enumerate(rows) if row.kind == kind]
+            limit = np.array([rows[j].limit for j in cols])
+            values = np.empty((raw.shape[0], len(cols)))
+            SENSOR_KINDS[kind].read(raw[:, cols], limit, values)
+            out[:, cols] = values
         return out
 
     def poses(self) -> np.ndarray:

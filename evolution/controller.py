@@ -38,6 +38,7 @@ import numpy as np
 from behaviours.inputs import FORAGE, MATE, SEARCH
 from behaviours.kernels import InputBuffers
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
+from cyber_rodent.commands import DESIGN_TOP_SPEED
 from cyber_rodent.validation import check_integer, check_number
 from evolution.config import EvolutionConfig
 from evolution.controllers import ControllerLayout, resolve
@@ -104,6 +105,7 @@ class NeuralController:
         controller: ControllerLayout | None = None,
         state: np.ndarray | None = None,
         lifetime_steps: int = 400,
+        top_speed: float = DESIGN_TOP_SPEED,
     ) -> None:
         layout = controller if controller is not None else resolve(EvolutionConfig())
         n = check_integer("n_robots", weights.shape[0], 1)
@@ -118,6 +120,7 @@ class NeuralController:
             check_number("max_energy", max_energy, 0.0, low_open=True),
             float(check_integer("max_recharge_steps", max_recharge_steps, 1)),
             float(check_integer("lifetime_steps", lifetime_steps, 1)),
+            check_number("top_speed", top_speed, 0.0, low_open=True),
         )
         inputs = np.zeros((n, layout.n_inputs))
         for column, row in enumerate(layout.inputs):

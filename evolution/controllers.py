@@ -64,6 +64,7 @@ from typing import Protocol
 import numpy as np
 
 from behaviours.kernels import InputBuffers
+from cyber_rodent.commands import DESIGN_TOP_SPEED
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 from evolution.controller_kernels import (
     decide_ctrnn,
@@ -357,13 +358,18 @@ class ControllerLayout:
         return tuple(s for block in self.blocks for s in [block.initial_scale] * block.size)
 
     def rules(
-        self, max_energy: float, max_recharge_steps: float, lifetime_steps: float = 400.0
+        self,
+        max_energy: float,
+        max_recharge_steps: float,
+        lifetime_steps: float = 400.0,
+        top_speed: float = DESIGN_TOP_SPEED,
     ) -> ControllerRules:
-        """The kernels' constants for this controller (class columns of the vision)."""
+        """The kernels' constants for this controller (class columns of the vision; the
+        robot's top speed, m/s, for the wheel inputs)."""
         return ControllerRules(
             float(max_energy), float(max_recharge_steps), LED, FACE, BATTERY,
             self.layout_array(), np.array(self.constants, dtype=np.float64),
-            float(lifetime_steps),
+            float(lifetime_steps), float(top_speed),
         )  # fmt: skip
 
     def kernels(self) -> StepKernels:

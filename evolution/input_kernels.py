@@ -39,7 +39,8 @@ import numpy.typing as npt
 
 from behaviours.kernels import BehaviourInputs, InputBuffers
 from cyber_rodent.backend import jit_built, jit_inline
-from cyber_rodent.constants import PROXIMITY_SIX, RANGE_SENSORS, TOP_SPEED
+from cyber_rodent.commands import DESIGN_TOP_SPEED
+from cyber_rodent.robot import CYBER_RODENT_PROXIMITY, CYBER_RODENT_SENSORS
 from cyber_rodent.vision.types import BATTERY, FACE, LED
 
 Floats = npt.NDArray[np.float64]
@@ -63,7 +64,8 @@ class ControllerRules(NamedTuple):
     #: the CTRNN's time-constant and gain ranges); empty for the paper's
     constants: Floats = np.zeros(0)  # noqa: RUF009
     lifetime_steps: float = 400.0  #: steps-since inputs = clip(steps / lifetime_steps, 0, 1)
-    top_speed: float = TOP_SPEED  #: wheel inputs = (speed / top_speed + 1) / 2, m/s
+    #: wheel inputs = (speed / top_speed + 1) / 2, m/s (the robot's top speed)
+    top_speed: float = DESIGN_TOP_SPEED
 
 
 class RobotState(NamedTuple):
@@ -205,8 +207,11 @@ class ControllerInput:
 
 def _proximity_rows() -> tuple[ControllerInput, ...]:
     rows = []
-    for k, sensor in enumerate(PROXIMITY_SIX):
-        sensor_name, angle, reach = RANGE_SENSORS[sensor]
+    # The paper's table names the Cyber Rodent's sensors; another robot reads its own six
+    # proximity sensors (``RobotModel.proximity``) into the same columns.
+    for k, sensor in enumerate(CYBER_RODENT_PROXIMITY):
+        row = CYBER_RODENT_SENSORS[sensor]
+        sensor_name, angle, reach = row.name, row.bearing_deg, row.limit
         rows.append(
             ControllerInput(
                 name=f"proximity_{sensor_name.removeprefix('range_')}",
@@ -322,7 +327,7 @@ INPUT_NAMES: tuple[str, ...] = tuple(row.name for row in INPUTS)
 N_INPUTS = len(INPUTS)
 IN_ENERGY = INPUT_NAMES.index("energy")
 IN_PROXIMITY_START = INPUT_NAMES.index("proximity_front")  #: the six proximities follow
-N_PROXIMITY = len(PROXIMITY_SIX)
+N_PROXIMITY = len(CYBER_RODENT_PROXIMITY)
 IN_FACE_DISTANCE = INPUT_NAMES.index("face_distance")
 IN_LED_DISTANCE = INPUT_NAMES.index("led_distance")
 IN_BATTERY_DISTANCE = INPUT_NAMES.index("battery_distance")

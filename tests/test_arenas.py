@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from cyber_rodent import constants as C
+from cyber_rodent.robot import cyber_rodent
 from cyber_rodent.survival import SurvivalConfig, SurvivalWorld
 from cyber_rodent.survival import kernels as survival_kernels
 from cyber_rodent.vision.geometric import GeometricVision, culled_rangefinders
@@ -38,6 +39,9 @@ HALF = C.FIELD_SIZE / 2
 TEETH_FRONT = 0.134
 #: A robot's IR port ahead of its centre, and to its right (m).
 PORT_AHEAD, PORT_RIGHT = 0.111, 0.02
+
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
 
 
 def test_grid_of_arenas() -> None:
@@ -90,7 +94,7 @@ def test_arena_layout_robots_packs_and_walls() -> None:
     inner = d.geom_xpos[north, 1] - m.geom_size[north, 1] - world.arena_centres[0, 1]
     assert inner == pytest.approx(HALF)
     poses = world.poses()
-    assert _inside(poses[:, :2], world.arena_centres[world.robot_arena], C.BODY_RADIUS).all()
+    assert _inside(poses[:, :2], world.arena_centres[world.robot_arena], CR.body_radius).all()
     packs = world.pack_positions()
     assert _inside(packs, world.arena_centres[world.pack_arena], C.PACK_RADIUS + 0.2).all()
     # Each arena got its share, not a fixed arrangement: the arenas differ.
@@ -103,7 +107,7 @@ def test_each_arena_is_placed_like_the_paper_field() -> None:
     generator; the next arena continues the same generator's stream."""
     world = World(WorldConfig(n_robots=8, n_packs=10, arenas=2), np.random.default_rng(3))
     rng = np.random.default_rng(3)
-    radii = np.array([C.BODY_RADIUS + 0.02] * 4 + [C.PACK_RADIUS + 0.15] * 5)
+    radii = np.array([CR.body_radius + 0.02] * 4 + [C.PACK_RADIUS + 0.15] * 5)
     margin = np.array([0.0] * 4 + [0.2 + C.PACK_RADIUS - radii[-1]] * 5)
     first = place_discs(radii, HALF, rng, margin)
     second = place_discs(radii, HALF, rng, margin)

@@ -18,10 +18,16 @@ from behaviours import (
 from behaviours.inputs import search_inputs
 from behaviours.reactive import ApproachConfig, AvoidConfig, ReactiveApproach, ReactiveAvoid
 from cyber_rodent.commands import N_COMMANDS, command_index
-from cyber_rodent.constants import RANGE_SENSORS
+from cyber_rodent.robot import cyber_rodent
 from cyber_rodent.vision.types import BATTERY, DEFAULT_MAX_DISTANCE, FACE, LED, VisionFrame
 
-RANGE_MAX = np.array([r for _, _, r in RANGE_SENSORS])  # 1.0 front, 0.3 the others
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
+#: Its range sensors as (name, bearing in degrees, range in metres).
+RANGE_ROWS = [(row.name, row.bearing_deg, row.limit) for row in CR.range_sensors]
+
+RANGE_MAX = np.array([r for _, _, r in RANGE_ROWS])  # 1.0 front, 0.3 the others
+
 
 
 def _frame(n: int) -> VisionFrame:

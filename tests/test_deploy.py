@@ -20,8 +20,8 @@ import torch
 from behaviours import BehaviourPolicies
 from behaviours.definitions import load_values
 from behaviours.greedy_policy import GreedyPolicy
-from cyber_rodent import constants as C
 from cyber_rodent.profiles import HardwareProfile
+from cyber_rodent.robot import cyber_rodent
 from evolution.config import EvolutionConfig
 from evolution.genome import Genome
 from evolution.lab.deploy import (
@@ -39,6 +39,11 @@ from evolution.lab.transfer import Individual, hardware_run_config
 from evolution.runner import EvolutionRunner, RunConfig, run_config_from_record
 
 SMALL = EvolutionConfig(population_size=8, n_robots=4, lifetime_steps=80, time_sharing_steps=40)
+
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
+#: Its range sensors as (name, bearing in degrees, range in metres).
+RANGE_ROWS = [(row.name, row.bearing_deg, row.limit) for row in CR.range_sensors]
 
 
 def _load_reference(bundle):
@@ -226,7 +231,7 @@ def test_bundle_json_states_the_run_config(odd_bundle) -> None:
     reflex = spec["survival"]["reflex"]
     assert (reflex["min_steps"], reflex["max_steps"], reflex["wheel_speed_m_s"]) == (1, 5, 0.4)
     assert reflex["after_mating"] is False and reflex["after_recharge"] is True
-    assert reflex["turn_per_step_rad"] == pytest.approx(0.4 * 0.25 / C.HALF_WHEEL_BASE)
+    assert reflex["turn_per_step_rad"] == pytest.approx(0.4 * 0.25 / CR.half_wheel_base)
     sharing = spec["survival"]["time_sharing"]
     assert (sharing["steps"], sharing["lifetime_steps"]) == (30, 90)
     assert sharing["agents_per_robot_in_run"] == 3
@@ -244,7 +249,7 @@ def test_bundle_json_states_the_run_config(odd_bundle) -> None:
     # sensors: the constants' angles and ranges, positions and directions from the model
     finders = spec["sensors"]["rangefinders"]
     assert [(f["name"], f["angle_deg"], f["range_max_m"]) for f in finders] == [
-        (n, a, r) for n, a, r in C.RANGE_SENSORS
+        (n, a, r) for n, a, r in RANGE_ROWS
     ]
     for f in finders:
         a = math.radians(f["angle_deg"])
@@ -255,7 +260,7 @@ def test_bundle_json_states_the_run_config(odd_bundle) -> None:
     assert spec["sensors"]["camera"]["max_range_m"] == ODD.camera.max_range
     conv = spec["conventions"]
     assert conv["wheel_order"] == ["left", "right"] and "positive to the left" in conv["bearing"]
-    assert conv["wheel_radius_m"] == C.WHEEL_RADIUS
+    assert conv["wheel_radius_m"] == CR.wheel_radius
 
 
 def test_readme_has_every_section_and_the_run_numbers(odd_bundle) -> None:

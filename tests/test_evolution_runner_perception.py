@@ -15,13 +15,16 @@ import numpy as np
 import pytest
 
 from behaviours import BehaviourPolicies, behaviour_inputs
-from cyber_rodent.constants import PROXIMITY_SIX
+from cyber_rodent.robot import cyber_rodent
 from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.vision import BATTERY, FACE, LED, CameraConfig, VisionNoise, make_provider
 from cyber_rodent.vision.types import normalise_distance
 from cyber_rodent.world import World, WorldConfig
 from evolution.config import EvolutionConfig
 from evolution.runner import EvolutionRunner, Perception, RunConfig
+
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
 
 
 def _scatter(world: World, rng: np.random.Generator, spread: float) -> None:
@@ -44,7 +47,7 @@ def _check_equal(perception: Perception, frame, world: World) -> None:
     got = perception.inputs.behaviour
     for name in ("mate", "forage", "search", "mate_available", "forage_available"):
         np.testing.assert_array_equal(getattr(got, name), getattr(expected, name), err_msg=name)
-    columns = list(PROXIMITY_SIX)  # proximity = clip(1 - range / range_max, 0, 1)
+    columns = list(CR.proximity)  # proximity = clip(1 - range / range_max, 0, 1)
     expected_proximity = np.clip(1.0 - ranges[:, columns] / world.range_max[:, columns], 0, 1)
     np.testing.assert_array_equal(perception.inputs.proximity, expected_proximity)
     for cls in (LED, FACE, BATTERY):

@@ -16,7 +16,6 @@ from gymnasium.utils.env_checker import check_env
 import cyber_rodent  # noqa: F401  (registers the ids)
 from behaviours import FORAGE, MATE, SEARCH, BehaviourPolicies
 from behaviours.episodes import BehaviourEpisode
-from cyber_rodent import constants as C
 from cyber_rodent.commands import N_COMMANDS, command_index
 from cyber_rodent.gym_env import (
     OBSERVATION_NAMES,
@@ -24,6 +23,7 @@ from cyber_rodent.gym_env import (
     CyberRodentEnv,
     decode_action,
 )
+from cyber_rodent.robot import cyber_rodent as paper_robot
 from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.tasks.rewards import coverage_cells
 from cyber_rodent.vision import CameraConfig
@@ -32,6 +32,11 @@ IDS = ["CyberRodent/Forage-v0", "CyberRodent/Mate-v0", "CyberRodent/Search-v0",
        "CyberRodent/Survival-v0"]  # fmt: skip
 #: A small camera for the pixel tests (64 x 256 strips): the pixels' shape follows it.
 SMALL_CAMERA = CameraConfig(view_width=64, height=64)
+
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = paper_robot()
+#: Its range sensors as (name, bearing in degrees, range in metres).
+RANGE_ROWS = [(row.name, row.bearing_deg, row.limit) for row in CR.range_sensors]
 
 
 def index(name: str) -> int:
@@ -97,7 +102,7 @@ def test_observation_names_units_and_bounds_are_documented() -> None:
     space = env.observation_space
     assert isinstance(space, gym.spaces.Box) and space.dtype == np.float32
     assert space.shape == (len(OBSERVATION_NAMES),) == (21,) == (len(OBSERVATION_UNITS),)
-    assert env.observation_names[:8] == tuple(name for name, _, _ in C.RANGE_SENSORS)
+    assert env.observation_names[:8] == tuple(name for name, _, _ in RANGE_ROWS)
     low, high = space.low, space.high
     assert high[index("range_front")] == np.float32(1.0)
     assert high[index("range_back")] == np.float32(0.3)
@@ -222,7 +227,7 @@ def test_action_spaces() -> None:
     box = CyberRodentEnv("search", action="continuous").action_space
     assert isinstance(box, gym.spaces.Box) and box.shape == (2,)
     assert box.low.tolist() == [-1.0, -1.0] and box.high.tolist() == [1.0, 1.0]
-    fast = CyberRodentEnv("survival", action="continuous", max_wheel_speed=C.TOP_SPEED)
+    fast = CyberRodentEnv("survival", action="continuous", max_wheel_speed=CR.top_speed)
     assert fast.action_names == ("left_wheel", "right_wheel", "recharge")
     assert fast.action_space.high.tolist() == pytest.approx([1.3, 1.3, 1.0])
     assert fast.action_space.low.tolist() == pytest.approx([-1.3, -1.3, -1.0])

@@ -29,10 +29,9 @@ from behaviours.kernels import (
     map_inputs,
     map_inputs_reference,
 )
-from cyber_rodent import constants as C
 from cyber_rodent.backend import Backend
 from cyber_rodent.commands import COMMAND_SPEEDS
-from cyber_rodent.constants import PROXIMITY_SIX
+from cyber_rodent.robot import cyber_rodent
 from cyber_rodent.survival import RechargeEnd, StepEvents, SurvivalConfig, SurvivalWorld
 from cyber_rodent.survival import kernels as survival_kernels
 from cyber_rodent.survival.energy import recharge_gain
@@ -67,7 +66,11 @@ from evolution.kernels import (
 )
 from tests.conftest import Scenes
 
-PROXIMITY = np.asarray(PROXIMITY_SIX, dtype=np.int64)
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
+
+PROXIMITY = np.asarray(CR.proximity, dtype=np.int64)
+
 
 
 def _copy(buffers: tuple) -> tuple:
@@ -418,7 +421,7 @@ def _survival_rules(sw: SurvivalWorld) -> survival_kernels.SurvivalRules:
     cfg = sw.config
     return survival_kernels.SurvivalRules(
         inv_wheel_radius=1.0 / float(sw.world.wheel_radius),
-        top_speed=float(C.TOP_SPEED),
+        top_speed=float(CR.top_speed),
         recharge_gain=float(recharge_gain(cfg)),
         max_energy=float(cfg.max_energy),
         max_recharge_steps=int(cfg.max_recharge_steps),
@@ -451,7 +454,7 @@ def _random_survival_state(
     sw.recharge_steps[:] = np.where(docked, steps, 0)
     reflex = ~docked & (rng.random(n) < 0.3)
     sw.reflex_steps_left[:] = np.where(reflex, rng.integers(1, cfg.reflex_max_steps + 1, n), 0)
-    sw.reflex_wheels[:] = rng.uniform(-C.TOP_SPEED, C.TOP_SPEED, (n, 2))
+    sw.reflex_wheels[:] = rng.uniform(-CR.top_speed, CR.top_speed, (n, 2))
     return survival_kernels.SurvivalState(
         sw.energy, sw.recharge_steps, sw.docked, sw.alive, sw.reflex_steps_left, sw.reflex_wheels
     )
@@ -470,10 +473,10 @@ def test_survival_begin_matches_its_reference(scene_world: World, scenes: Scenes
     )
     for trial in scenes(40):
         state = _random_survival_state(sw, rng)
-        wheels = rng.uniform(-C.TOP_SPEED, C.TOP_SPEED, (n, 2))
-        wheels[rng.random((n, 2)) < 0.1] = C.TOP_SPEED  # on the limit: allowed
+        wheels = rng.uniform(-CR.top_speed, CR.top_speed, (n, 2))
+        wheels[rng.random((n, 2)) < 0.1] = CR.top_speed  # on the limit: allowed
         if trial % 5 == 4:  # one bad wheel: NaN, infinite or beyond the limit
-            bad = (np.nan, -np.inf, 1.001 * C.TOP_SPEED)[trial % 3]
+            bad = (np.nan, -np.inf, 1.001 * CR.top_speed)[trial % 3]
             wheels[rng.integers(n), rng.integers(2)] = bad
         # Mostly "continue": a docked robot that stops must be released first (by the world).
         continue_recharge = rng.random(n) < (0.7 if trial % 3 == 0 else 1.0)
@@ -634,7 +637,7 @@ def _scripted_commands(
     packs = sw.world.pack_positions()
     wheels = np.zeros((n, 2))
     noise = rng.uniform(-0.05, 0.05, size=(n, 2))
-    wander = rng.uniform(-C.TOP_SPEED, C.TOP_SPEED, size=(n, 2))
+    wander = rng.uniform(-CR.top_speed, CR.top_speed, size=(n, 2))
     for i in range(n):
         if mode[i] == SEEK_PACK or sw.energy[i] < HUNGRY:
             near = packs[np.argmin(np.linalg.norm(packs - poses[i, :2], axis=1))]
@@ -645,7 +648,7 @@ def _scripted_commands(
             wheels[i] = _steer_to(poses[i], poses[others[np.argmin(gaps)], :2])
         else:
             wheels[i] = wander[i]
-    wheels = np.clip(wheels + noise, -C.TOP_SPEED, C.TOP_SPEED)
+    wheels = np.clip(wheels + noise, -CR.top_speed, CR.top_speed)
     led = rng.random(n) < 0.5
     mate = mode == SEEK_ROBOT
     continue_recharge = rng.random(n) < 0.985

@@ -9,9 +9,15 @@ import numpy as np
 import pytest
 
 from cyber_rodent import constants as C
+from cyber_rodent.robot import cyber_rodent
 from cyber_rodent.world import World, WorldConfig
 
 INNER_WALL = C.FIELD_SIZE / 2  # x of the east wall's inner face
+
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
+#: Its range sensors as (name, bearing in degrees, range in metres).
+RANGE_ROWS = [(row.name, row.bearing_deg, row.limit) for row in CR.range_sensors]
 
 
 def lone_robot(x: float = 0.0, y: float = 0.0, yaw: float = 0.0) -> World:
@@ -48,7 +54,7 @@ def test_spin_in_place_yaw_rate(v: float) -> None:
     drive(w, -v, v, 0.25)
     yaw1 = w.poses()[0, 2]
     rate = math.remainder(yaw1 - yaw0, math.tau) / 0.25
-    assert rate == pytest.approx(v / C.HALF_WHEEL_BASE, rel=0.05)
+    assert rate == pytest.approx(v / CR.half_wheel_base, rel=0.05)
     assert np.hypot(*w.poses()[0, :2]) < 0.01  # in place
 
 
@@ -58,8 +64,8 @@ def test_top_speed_is_capped() -> None:
     start = w.poses()[0].copy()
     drive(w, 5.0, 5.0, 0.5)
     speed = np.hypot(*(w.poses()[0, :2] - start[:2])) / 0.5
-    assert speed <= C.TOP_SPEED
-    assert speed > 0.95 * C.TOP_SPEED  # capped, not crippled
+    assert speed <= CR.top_speed
+    assert speed > 0.95 * CR.top_speed  # capped, not crippled
 
 
 def test_no_tipping_over_ten_minutes_of_random_driving_with_pileups() -> None:
@@ -73,12 +79,12 @@ def test_no_tipping_over_ten_minutes_of_random_driving_with_pileups() -> None:
     walls = {mujoco.mj_name2id(w.model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in C.WALL_GEOMS}
     for k in range(int(600 / 0.5)):
         if k % 8 < 4:  # random driving, full speed range, forwards and backwards
-            left, right = rng.uniform(-C.TOP_SPEED, C.TOP_SPEED, size=(2, 4))
+            left, right = rng.uniform(-CR.top_speed, CR.top_speed, size=(2, 4))
         else:  # everyone charges at the centre at top speed: pile-ups
             pose = w.poses()
             err = np.arctan2(-pose[:, 1], -pose[:, 0]) - pose[:, 2]
             turn = np.clip(2.0 * np.arctan2(np.sin(err), np.cos(err)), -1, 1)
-            left, right = C.TOP_SPEED * (1 - turn), C.TOP_SPEED * (1 + turn)
+            left, right = CR.top_speed * (1 - turn), CR.top_speed * (1 + turn)
         w.set_wheel_speeds(left, right)
         for _ in range(steps_per_command // 5):
             w.step(5)
@@ -94,10 +100,10 @@ def test_no_tipping_over_ten_minutes_of_random_driving_with_pileups() -> None:
     assert np.all(np.abs(w.poses()[:, :2]) < INNER_WALL)  # nobody left the field
 
 
-@pytest.mark.parametrize("k", range(C.N_RANGE))
+@pytest.mark.parametrize("k", range(CR.n_range))
 def test_rangefinder_reads_true_wall_distance(k: int) -> None:
     """Sensor k, turned to face the east wall at a known distance, reads it within 1 cm."""
-    name, bearing_deg, max_range = C.RANGE_SENSORS[k]
+    name, bearing_deg, max_range = RANGE_ROWS[k]
     w = lone_robot(yaw=-math.radians(bearing_deg))
     site = mujoco.mj_name2id(w.model, mujoco.mjtObj.mjOBJ_SITE, C.robot_prefix(0) + name)
     for true_distance in (0.5 * max_range, 0.9 * max_range):
@@ -129,7 +135,7 @@ def test_rangefinder_sees_other_robots_but_not_itself() -> None:
     # Front sensor of robot 0 sits at x=0.111; robot 1's face (its front) is at 0.5-0.134 (teeth).
     assert 0.2 < r[0, 0] < 0.3
     # The side and back sensors see nothing of the robot's own body or wheels.
-    assert r[0, 5] == C.RANGE_SENSORS[5][2] and r[0, 6] == C.RANGE_SENSORS[6][2]
+    assert r[0, 5] == RANGE_ROWS[5][2] and r[0, 6] == RANGE_ROWS[6][2]
 
 
 # --- knocks between two robots (design §9.35) --------------------------------------------------

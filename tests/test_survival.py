@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from cyber_rodent import constants as C
+from cyber_rodent.robot import cyber_rodent
 from cyber_rodent.survival import RechargeEnd, SurvivalConfig, SurvivalWorld
 from cyber_rodent.world import WorldConfig
 
@@ -21,6 +21,9 @@ FORWARD = np.array([[0.4, 0.4]])
 STOP = np.zeros((1, 2))
 NO = np.zeros(1, dtype=bool)
 YES = np.ones(1, dtype=bool)
+
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
 
 
 def lone_robot(config: SurvivalConfig | None = None, n_packs: int = 1) -> SurvivalWorld:
@@ -245,7 +248,7 @@ def test_control_dt_must_be_whole_substeps():
     [
         (np.array([[np.nan, 0.0]]), "wheels"),
         (np.array([[0.0, np.inf]]), "wheels"),
-        (np.array([[C.TOP_SPEED + 0.1, 0.0]]), r"wheels must be in \[-1.3, 1.3\]"),
+        (np.array([[CR.top_speed + 0.1, 0.0]]), r"wheels must be in \[-1.3, 1.3\]"),
         (np.zeros((2, 2)), r"wheels must have shape \(1, 2\)"),
     ],
 )

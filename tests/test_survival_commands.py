@@ -9,15 +9,18 @@ import numpy as np
 import pytest
 
 from cyber_rodent import commands
-from cyber_rodent import constants as C
+from cyber_rodent.robot import cyber_rodent
 from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.world import WorldConfig
+
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
 
 
 def test_command_set_is_defined_once_and_within_the_motor_limit():
     assert commands.N_COMMANDS == len(commands.WHEEL_COMMANDS) == commands.COMMAND_SPEEDS.shape[0]
     assert len(set(commands.COMMAND_NAMES)) == commands.N_COMMANDS
-    assert np.abs(commands.COMMAND_SPEEDS).max() <= C.TOP_SPEED
+    assert np.abs(commands.COMMAND_SPEEDS).max() <= CR.top_speed
     assert not commands.COMMAND_SPEEDS.flags.writeable
     with pytest.raises(ValueError):
         commands.COMMAND_SPEEDS[0, 0] = 1.0

@@ -10,9 +10,12 @@ import pytest
 from dm_env import StepType
 
 from cyber_rodent import commands, tasks
-from cyber_rodent import constants as C
+from cyber_rodent.robot import cyber_rodent
 from cyber_rodent.survival import SurvivalConfig
 from cyber_rodent.vision import BATTERY
+
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
 
 
 def place(env, poses: dict[int, tuple[float, float, float]], packs=None) -> None:
@@ -44,7 +47,7 @@ def test_load_by_name_gives_the_documented_settings():
     assert env.control_timestep() == pytest.approx(0.2)
     assert set(env.observation_spec()) == set(tasks.OBSERVATION_NAMES)
     assert list(env.action_spec()) == ["wheels", "led", "mate", "recharge"]
-    assert env.action_spec()["wheels"].maximum == C.TOP_SPEED
+    assert env.action_spec()["wheels"].maximum == CR.top_speed
     assert env.reward_spec().shape == (4,)
     assert tasks.load("MATE", seed=0).reward_spec().shape == (2,)
     assert tasks.load("forage", seed=0).observation_spec()["energy"].shape == (1,)

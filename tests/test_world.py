@@ -10,6 +10,7 @@ import pytest
 
 from cyber_rodent import constants as C
 from cyber_rodent.assets import ASSETS_ENV_VAR, AssetNotFoundError, asset_path
+from cyber_rodent.robot import RobotParts, cyber_rodent
 from cyber_rodent.world import (
     MAX_PACKS,
     MAX_ROBOTS,
@@ -22,6 +23,12 @@ from cyber_rodent.world import (
     place_discs,
     smallest_field,
 )
+
+#: The paper's robot, read from its MJCF file and sensor table.
+CR = cyber_rodent()
+#: Its range sensors as (name, bearing in degrees, range in metres).
+RANGE_ROWS = [(row.name, row.bearing_deg, row.limit) for row in CR.range_sensors]
+PARTS = RobotParts()
 
 
 @pytest.fixture(scope="module")
@@ -37,18 +44,28 @@ def test_default_world_counts(world: World) -> None:
     assert sum(m.jnt_type == mujoco.mjtJoint.mjJNT_FREE) == 4
 
 
+def test_robot_model_reads_the_design_numbers_from_the_mjcf() -> None:
+    """docs/design.md §4's numbers, as the robot model reads them from the XML."""
+    assert (CR.mass, CR.wheel_radius, CR.half_wheel_base) == (1.75, 0.035, 0.08)
+    assert (CR.top_speed, CR.body_length, CR.motor_time_constant) == (1.3, 0.22, 0.05)
+    # The teeth's front corners (0.134 m ahead, 3 cm aside) are the farthest point seen from
+    # above: sqrt(0.134² + 0.03²) = 0.1373 m, rounded up to the centimetre for placement.
+    assert CR.footprint_radius == pytest.approx(math.hypot(0.134, 0.03), abs=1e-6)
+    assert CR.body_radius == 0.14
+
+
 def test_robot_matches_design_numbers(world: World) -> None:
     m = world.model
     root = m.body_rootid[world.chassis_body[0]]
-    assert m.body_subtreemass[root] == pytest.approx(C.ROBOT_MASS, abs=1e-9)
-    assert world.wheel_radius == pytest.approx(C.WHEEL_RADIUS)
-    assert world.max_wheel_omega * world.wheel_radius == pytest.approx(C.TOP_SPEED, rel=1e-6)
+    assert m.body_subtreemass[root] == pytest.approx(CR.mass, abs=1e-9)
+    assert world.wheel_radius == pytest.approx(CR.wheel_radius)
+    assert world.max_wheel_omega * world.wheel_radius == pytest.approx(CR.top_speed, rel=1e-6)
     chassis = world.chassis_geom[0]
-    assert 2 * m.geom_size[chassis, 0] == pytest.approx(C.BODY_LENGTH)
-    # Half wheel base: wheel bodies at ±HALF_WHEEL_BASE from the centre line.
+    assert 2 * m.geom_size[chassis, 0] == pytest.approx(CR.body_length)
+    # Half wheel base: wheel bodies at ±half_wheel_base from the centre line.
     for name in ("left_wheel_body", "right_wheel_body"):
         b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, C.robot_prefix(0) + name)
-        assert abs(m.body_pos[b, 1]) == pytest.approx(C.HALF_WHEEL_BASE)
+        assert abs(m.body_pos[b, 1]) == pytest.approx(CR.half_wheel_base)
     # Centre of mass low: below a quarter of the body's height above the floor.
     mujoco.mj_forward(m, world.data)
     assert world.data.subtree_com[root, 2] < 0.05
@@ -58,11 +75,14 @@ def test_every_constant_name_exists(world: World) -> None:
     m = world.model
     p = C.robot_prefix(0)
     for kind, names in [
-        (mujoco.mjtObj.mjOBJ_GEOM, [C.CHASSIS_GEOM, C.LED_GEOM, C.FACE_GEOM, C.TEETH_GEOM]),
-        (mujoco.mjtObj.mjOBJ_SITE, [C.IR_PORT_SITE, C.CAMERA_MOUNT_SITE]),
-        (mujoco.mjtObj.mjOBJ_JOINT, [C.LEFT_WHEEL_JOINT, C.RIGHT_WHEEL_JOINT]),
-        (mujoco.mjtObj.mjOBJ_ACTUATOR, [C.LEFT_MOTOR, C.RIGHT_MOTOR]),
-        (mujoco.mjtObj.mjOBJ_SENSOR, [n for n, _, _ in C.RANGE_SENSORS]),
+        (
+            mujoco.mjtObj.mjOBJ_GEOM,
+            [PARTS.chassis_geom, PARTS.led_geom, PARTS.face_geom, PARTS.teeth_geom],
+        ),
+        (mujoco.mjtObj.mjOBJ_SITE, [PARTS.ir_port_site, PARTS.camera_site]),
+        (mujoco.mjtObj.mjOBJ_JOINT, [PARTS.left_wheel_joint, PARTS.right_wheel_joint]),
+        (mujoco.mjtObj.mjOBJ_ACTUATOR, [PARTS.left_motor, PARTS.right_motor]),
+        (mujoco.mjtObj.mjOBJ_SENSOR, [n for n, _, _ in RANGE_ROWS]),
         (mujoco.mjtObj.mjOBJ_CAMERA, [C.CHASE_CAMERA, *C.OMNI_CAMERAS]),
     ]:
         for name in names:
@@ -77,7 +97,7 @@ def test_range_sensor_directions_match_constants(world: World) -> None:
     m, d = world.model, world.data
     world.set_robot_pose(0, 0.0, 0.0, 0.0)
     mujoco.mj_forward(m, d)
-    for name, bearing_deg, _ in C.RANGE_SENSORS:
+    for name, bearing_deg, _ in RANGE_ROWS:
         s = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, C.robot_prefix(0) + name)
         z_axis = d.site_xmat[s].reshape(3, 3)[:, 2]
         expected = np.array(
@@ -123,7 +143,7 @@ def test_placement_is_seeded_and_non_overlapping() -> None:
     np.testing.assert_array_equal(a.pack_positions(), b.pack_positions())
     assert not np.allclose(a.poses(), c.poses())
     pts = np.vstack([a.poses()[:, :2], a.pack_positions()])
-    radii = np.array([C.BODY_RADIUS] * 4 + [C.PACK_RADIUS] * 5)
+    radii = np.array([CR.body_radius] * 4 + [C.PACK_RADIUS] * 5)
     for i in range(len(pts)):
         for j in range(i + 1, len(pts)):
             assert np.hypot(*(pts[i] - pts[j])) >= radii[i] + radii[j]
@@ -384,7 +404,7 @@ def test_walls_floor_and_top_camera_follow_the_field() -> None:
 def test_placement_fills_a_large_field() -> None:
     w = World(WorldConfig(field_size=11.5, n_robots=100, n_packs=125), np.random.default_rng(2))
     robots, packs = w.poses()[:, :2], w.pack_positions()
-    assert np.abs(robots).max() <= 5.75 - C.BODY_RADIUS
+    assert np.abs(robots).max() <= 5.75 - CR.body_radius
     assert np.abs(packs).max() <= 5.75 - C.PACK_RADIUS - 0.2
     assert np.abs(robots).max() > 4.0  # spread over the field, not the paper's 2.3 m
     pts = np.vstack([robots, packs])

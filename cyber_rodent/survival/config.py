@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from cyber_rodent import constants as C
+from cyber_rodent.commands import DESIGN_TOP_SPEED
 from cyber_rodent.validation import (
     boolean,
     check_integer,
@@ -45,7 +46,9 @@ class SurvivalConfig:
         reflex_min_steps: shortest post-recharge rotation reflex, control steps.
         reflex_max_steps: longest reflex; the length is drawn uniformly in [min, max]. At the
             default spin speed a step of 0.2 s turns 0.75 rad, so 2..4 steps turn 86°..172°.
-        reflex_wheel_speed: wheel rim speed of the reflex spin, m/s.
+        reflex_wheel_speed: wheel rim speed of the reflex spin, m/s, on the Cyber Rodent;
+            another robot (``world.robot``) spins at this times its top speed over the Cyber
+            Rodent's, as the discrete commands do (``commands.motor_scale``).
         dock_bearing_tolerance_deg: a teeth/electrode contact is a capture only if the pack's
             centre lies within this angle of the robot's heading. With 6 cm wide teeth and a
             9 cm electrode ring, 15° admits contacts with the pack's axis up to about 4.7 cm
@@ -108,7 +111,7 @@ class SurvivalConfig:
     reflex_min_steps: int = integer(2, 0, 1000, unit="control steps", source="docs/design.md §9.6")
     reflex_max_steps: int = integer(4, 0, 1000, unit="control steps", source="docs/design.md §9.6")
     reflex_wheel_speed: float = number(
-        0.3, 0.0, C.TOP_SPEED, low_open=True, unit="m/s", source="docs/design.md §9.6"
+        0.3, 0.0, DESIGN_TOP_SPEED, low_open=True, unit="m/s", source="docs/design.md §9.6"
     )
     dock_bearing_tolerance_deg: float = number(
         15.0, 0.0, 90.0, low_open=True, unit="deg", source="docs/design.md §9.4"

@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from cyber_rodent.backend import Backend, bind, pick
+from cyber_rodent.commands import motor_scale
 from cyber_rodent.survival import kernels
 from cyber_rodent.survival.config import SurvivalConfig
 from cyber_rodent.survival.events import StepEvents
@@ -101,6 +102,8 @@ class Docking:
     ):
         self.world = world
         self.config = config
+        #: m/s, the reflex's rim speed on this world's robot (``commands.motor_scale``).
+        self.reflex_speed = config.reflex_wheel_speed * motor_scale(world.robot)
         self.state = state
         self.dock_pack = dock_pack
         self.flags = flags
@@ -251,10 +254,7 @@ class Docking:
         state = self.state
         state.reflex_steps_left[i] = rng.integers(cfg.reflex_min_steps, cfg.reflex_max_steps + 1)
         direction = 1.0 if rng.random() < 0.5 else -1.0  # +1 = counter-clockwise
-        state.reflex_wheels[i] = (
-            -direction * cfg.reflex_wheel_speed,
-            direction * cfg.reflex_wheel_speed,
-        )
+        state.reflex_wheels[i] = (-direction * self.reflex_speed, direction * self.reflex_speed)
 
 
 __all__ = ["Docking", "check_energy", "check_recharge_steps", "recharge_gain"]

@@ -216,8 +216,9 @@ def free_spot(world: World, robot: int, step: float = 0.05, rings: int = 60) -> 
     others = np.delete(poses[:, :2], robot, axis=0)
     packs = world.pack_positions()
     centre, half = arena_bounds(world, robot)
-    limit = half - C.BODY_RADIUS
-    robot_gap, pack_gap = 2 * C.BODY_RADIUS, C.BODY_RADIUS + C.PACK_RADIUS
+    radius = world.robot.body_radius
+    limit = half - radius
+    robot_gap, pack_gap = 2 * radius, radius + C.PACK_RADIUS
     for ring in range(rings + 1):
         directions = 1 if ring == 0 else 16
         for k in range(directions):

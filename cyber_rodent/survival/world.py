@@ -67,13 +67,14 @@ def _substeps(control_dt: float, timestep: float) -> int:
     return int(n)
 
 
-def _check_wheels(wheels: np.ndarray) -> None:
-    """Raise the error that names the problem if a wheel speed is NaN or out of range."""
-    if not (-C.TOP_SPEED <= wheels.min() and wheels.max() <= C.TOP_SPEED):  # NaN fails too
+def _check_wheels(wheels: np.ndarray, top: float) -> None:
+    """Raise the error that names the problem if a wheel speed is NaN or outside the robot's
+    top speed ``top`` (m/s)."""
+    if not (-top <= wheels.min() and wheels.max() <= top):  # NaN fails too
         if not np.isfinite(wheels).all():
             raise ValueError("wheels must be finite wheel speeds in m/s (got NaN or inf)")
         raise ValueError(
-            f"wheels must be in [-{C.TOP_SPEED}, {C.TOP_SPEED}] m/s (the motor limit), "
+            f"wheels must be in [-{top:g}, {top:g}] m/s (the motor limit), "
             f"got values from {wheels.min():.4g} to {wheels.max():.4g}"
         )
 
@@ -161,7 +162,7 @@ class SurvivalWorld:
         )
         self._rules = SurvivalRules(
             inv_wheel_radius=1.0 / float(world.wheel_radius),
-            top_speed=float(C.TOP_SPEED),
+            top_speed=float(world.robot.top_speed),
             recharge_gain=float(recharge_gain(cfg)),
             max_energy=float(cfg.max_energy),
             max_recharge_steps=int(cfg.max_recharge_steps),
@@ -207,7 +208,7 @@ class SurvivalWorld:
         motors = [
             mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, C.robot_prefix(i) + name)
             for i in range(self.n_robots)
-            for name in (C.LEFT_MOTOR, C.RIGHT_MOTOR)
+            for name in (w.robot.parts.left_motor, w.robot.parts.right_motor)
         ]
         if motors != list(range(motors[0], motors[0] + len(motors))):
             raise RuntimeError("wheel motors are not contiguous in the compiled model")
@@ -276,8 +277,9 @@ class SurvivalWorld:
         """One control step: commands, ``n_substeps`` physics steps, then the mechanics.
 
         Args:
-            wheels: (n, 2) left/right wheel rim speeds in m/s, within ±``TOP_SPEED``. Ignored
-                for robots that are docked, in their reflex, or dead.
+            wheels: (n, 2) left/right wheel rim speeds in m/s, within the robot's top speed
+                (``world.robot.top_speed``). Ignored for robots that are docked, in their
+                reflex, or dead.
             led: (n,) bool, green LED on.
             mate: (n,) bool, the robot's active agent runs Mate (signals willingness to mate).
             continue_recharge: (n,) bool, the recharge decision of docked robots (True =
@@ -368,7 +370,7 @@ class SurvivalWorld:
             if status == kernels.BEGIN_OK:
                 events.clear()
         if status != kernels.BEGIN_OK:  # nothing was written; raise the error that names it
-            _check_wheels(self._begin_commands.wheels)
+            _check_wheels(self._begin_commands.wheels, self._rules.top_speed)
         self._mid_step = True
 
     def _bind_begin(self, commands: StepCommands) -> Callable[[], int]:

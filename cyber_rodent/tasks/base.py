@@ -26,7 +26,7 @@ the one observation table, :mod:`cyber_rodent.observations`, in float64 and grou
 ==================  =========  ===============================================================
 name                shape      meaning
 ==================  =========  ===============================================================
-``range``           (k, 8)     IR range readings, m, sensor order of ``constants.RANGE_SENSORS``
+``range``           (k, 8)     IR range readings, m, in the order of the robot's range sensors
 ``nearest_led``     (k, 3)     nearest green LED: bearing (rad, + left), distance (m), visible
 ``nearest_face``    (k, 3)     nearest red face, same layout
 ``nearest_battery`` (k, 3)     nearest blue battery pack, same layout
@@ -39,8 +39,9 @@ name                shape      meaning
 An unseen target has bearing 0, distance ``camera.max_range`` and visible 0 (docs/design.md §5 maps
 an unseen target's normalised distance to 1; ``vision.normalise_distance`` does that).
 
-Actions are a dict: ``wheels`` (k, 2) wheel rim speeds in m/s within the motor limit
-±``TOP_SPEED``, and ``led`` (k,) in [0, 1] (on above 0.5; the spec's LED is the start state).
+Actions are a dict: ``wheels`` (k, 2) wheel rim speeds in m/s within the motor limit, ± the
+robot's top speed, and ``led`` (k,) in [0, 1] (on above 0.5; the spec's LED is the start
+state).
 A task whose learners decide their Mate signal or their recharge decision (the spec's ``mate``
 or ``recharge`` is None: Survival) adds ``mate`` (k,) in [0, 1] (above 0.5 the robot's agent
 runs Mate, willing to exchange) and ``recharge`` (k,) in [0, 1] (while docked, above 0.5
@@ -75,15 +76,15 @@ from dm_control.mjcf import Physics
 from dm_control.rl import control
 from dm_env import specs
 
-from cyber_rodent import constants as C
-from cyber_rodent.observations import OBSERVATION_GROUPS, ObservationLimits
+from cyber_rodent.observations import OBSERVATION_GROUPS, ObservationLimits, observation_table
 from cyber_rodent.survival import StepEvents, SurvivalConfig, SurvivalWorld
-from cyber_rodent.tasks.episode import TaskEpisode
+from cyber_rodent.tasks.episode import EpisodeOptions, TaskEpisode
 from cyber_rodent.tasks.spec import TaskSpec
 from cyber_rodent.vision import CameraConfig, VisionFrame, make_provider
 from cyber_rodent.world import World, WorldConfig
 
-#: Observation names in a stable order (also the order of a flattened observation).
+#: The Cyber Rodent's observation names in a stable order (also the order of a flattened
+#: observation); another robot's: its table's groups (``observations.observation_table``).
 OBSERVATION_NAMES = tuple(name for name, _ in OBSERVATION_GROUPS)
 #: Threshold of the [0, 1] switch actions (``led``, ``mate``, ``recharge``): on above it.
 SWITCH_ON = 0.5
@@ -96,6 +97,7 @@ BASE_OPTIONS = (
     "vision",
     "camera",
     "timestep",
+    "robot",
 )
 #: Placements drawn for a start condition before giving up.
 START_ATTEMPTS = 200
@@ -117,6 +119,8 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         vision: vision provider, ``"geometric"`` (default) or ``"rendered"``.
         camera: the camera config shared by both providers.
         timestep: physics timestep, s (default: ``WorldConfig``'s).
+        robot: the robots' kind (``WorldConfig.robot``; default the Cyber Rodent): its sensor
+            table gives the observation, its top speed the wheels' bounds.
         **options: ``start_in_view`` (tasks with a start condition: re-draw the initial
             placement until the condition holds; default True) and the reward's scales
             (:meth:`TaskSpec.reward_options`), e.g. ``collision_penalty`` for Search,
@@ -141,6 +145,7 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         vision: str = "geometric",
         camera: CameraConfig | None = None,
         timestep: float | None = None,
+        robot: str = "cyber_rodent",
         **options: Any,
     ):
         spec = self.task_spec
@@ -168,9 +173,9 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         self.scales = dataclasses.replace(spec.control_scales, **options)
         self.episode_steps = int(episode_steps)
         self._rng = rng
-        world_cfg = WorldConfig(n_robots=n_robots, n_packs=n_packs)
+        world_cfg = WorldConfig(n_robots=n_robots, n_packs=n_packs, robot=robot)
         if timestep is not None:
-            world_cfg = WorldConfig(n_robots=n_robots, n_packs=n_packs, timestep=timestep)
+            world_cfg = dataclasses.replace(world_cfg, timestep=timestep)
         start = spec.start
         if self.start_in_view and start is not None and n_packs < start.min_packs:
             raise ValueError(
@@ -179,6 +184,8 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
         world = World(world_cfg, rng)
         self.survival = SurvivalWorld(world, survival, rng)
         self.world = world
+        self._table = observation_table(world.robot.sensors)
+        self._groups = self._table.groups
         # The provider gets its own stream, so its noise never shifts the placement draws.
         self.vision = make_provider(vision, world, camera, rng.spawn(1)[0])
         self.camera = self.vision.config
@@ -189,13 +196,15 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
             spec,
             self.survival,
             self.vision.observe,
-            reward=spec.control_reward,
-            scales=self.scales,
-            switches=switches,
-            episode_steps=self.episode_steps,
-            start=self.start_in_view,
-            max_start_draws=START_ATTEMPTS,
-            max_range=self.max_range,
+            EpisodeOptions(
+                reward=spec.control_reward,
+                scales=self.scales,
+                switches=switches,
+                episode_steps=self.episode_steps,
+                start=self.start_in_view,
+                max_start_draws=START_ATTEMPTS,
+                max_range=self.max_range,
+            ),
         )
         self.k = self.episode.k
         self.rewards = self.episode.rewards
@@ -220,9 +229,8 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
     def _make_action_spec(self) -> OrderedDict[str, specs.BoundedArray]:
         k = self.k
         spec = OrderedDict()
-        spec["wheels"] = specs.BoundedArray(
-            (k, 2), np.float64, -C.TOP_SPEED, C.TOP_SPEED, name="wheels"
-        )
+        top = self.world.robot.top_speed
+        spec["wheels"] = specs.BoundedArray((k, 2), np.float64, -top, top, name="wheels")
         spec["led"] = specs.BoundedArray((k,), np.float64, 0.0, 1.0, name="led")
         for switch in self.task_spec.switches:
             if switch != "led":
@@ -232,10 +240,12 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
     def _make_observation_spec(self) -> OrderedDict[str, specs.BoundedArray]:
         """The bounds of the observation table's entries, grouped as the observation."""
         k = self.k
-        limits = ObservationLimits.of(self.world.range_max[0], self.max_range, self.survival.config)
+        limits = ObservationLimits.of(
+            self.world.range_max[0], self.max_range, self.survival.config, self._table
+        )
         low, high = limits.intervals()
         spec = OrderedDict()
-        for name, columns in OBSERVATION_GROUPS:
+        for name, columns in self._table.groups:
             shape = (k,) if isinstance(columns, int) else (k, columns.stop - columns.start)
             spec[name] = specs.BoundedArray(
                 shape, np.float64, _bound(low[columns], k), _bound(high[columns], k), name=name
@@ -319,7 +329,7 @@ class CyberRodentTask(control.Task):  # type: ignore[misc]  # dm_control has no 
     def get_observation(self, physics: Physics | None = None) -> OrderedDict[str, np.ndarray]:
         """The controlled robots' entries of the observation table, grouped by name."""
         table = self.episode.observations(np.float64)[: self.k]
-        return OrderedDict((name, table[:, columns].copy()) for name, columns in OBSERVATION_GROUPS)
+        return OrderedDict((name, table[:, columns].copy()) for name, columns in self._groups)
 
     # --- reward and termination ---------------------------------------------------------------
     def get_reward(self, physics: Physics | None = None) -> np.ndarray:

@@ -127,6 +127,36 @@ class EpisodeStep:
         return info
 
 
+@dataclass(frozen=True)
+class EpisodeOptions:
+    """How an interface runs a task's episodes (:class:`TaskEpisode`); every default is the
+    spec's own."""
+
+    reward: str = "sparse"
+    """the reward kind, ``"sparse"`` or ``"shaped"`` (:meth:`TaskSpec.rewards`)"""
+    scales: RewardScales | None = None
+    """the reward's scales (None: :class:`RewardScales`' defaults)"""
+    rewarded: int | None = None
+    """robots rewarded, ``0 .. rewarded-1`` (None: the learners)"""
+    switches: tuple[str, ...] | None = None
+    """the switches the learners' actions set (None: the spec's open ones,
+    :attr:`TaskSpec.switches`); the others keep the spec's values"""
+    episode_steps: int | None = None
+    """control steps after which an episode is truncated (None: the spec's)"""
+    start: bool = True
+    """re-draw the placement until the spec's start condition holds (False: any placement)"""
+    max_start_draws: int = START_DRAWS
+    """placements drawn for the start condition before giving up"""
+    collisions: bool = False
+    """measure every robot's contacts after each step (:attr:`EpisodeStep.collided`);
+    otherwise only a reward term that needs them measures them"""
+    track_cells: bool = False
+    """count the coverage cells robot 0 visits even if no term needs them (the
+    ``coverage_cells`` measure)"""
+    max_range: float | None = None
+    """the camera's range, an unseen target's distance in :meth:`TaskEpisode.observations`"""
+
+
 class TaskEpisode:
     """Episodes of the task ``spec`` on the world ``survival`` (see the module docstring).
 
@@ -135,20 +165,7 @@ class TaskEpisode:
         survival: its world (the field of the spec or of the caller's choice).
         look: what the robots see in the world's current state (called once per draw of the
             start and once per step); None where the task looks at nothing.
-        reward: the reward kind, ``"sparse"`` or ``"shaped"`` (:meth:`TaskSpec.rewards`).
-        scales: the reward's scales (default: :class:`RewardScales`' defaults).
-        rewarded: robots rewarded, ``0 .. rewarded-1`` (default: the learners).
-        switches: the switches the learners' actions set (default: the spec's open ones,
-            :attr:`TaskSpec.switches`); the others keep the spec's values.
-        episode_steps: control steps after which an episode is truncated (default: the spec's).
-        start: re-draw the placement until the spec's start condition holds (False: any
-            placement).
-        max_start_draws: placements drawn for the start condition before giving up.
-        collisions: measure every robot's contacts after each step (:attr:`EpisodeStep.
-            collided`); otherwise only a reward term that needs them measures them.
-        track_cells: count the coverage cells robot 0 visits even if no term needs them (the
-            ``coverage_cells`` measure).
-        max_range: the camera's range, an unseen target's distance in :meth:`observations`.
+        options: how the interface runs the episodes (:class:`EpisodeOptions`).
 
     Attributes:
         k: the learners (robots ``0 .. k-1``); the others are parked.
@@ -168,18 +185,9 @@ class TaskEpisode:
         spec: TaskSpec,
         survival: SurvivalWorld,
         look: Look,
-        *,
-        reward: str = "sparse",
-        scales: RewardScales | None = None,
-        rewarded: int | None = None,
-        switches: tuple[str, ...] | None = None,
-        episode_steps: int | None = None,
-        start: bool = True,
-        max_start_draws: int = START_DRAWS,
-        collisions: bool = False,
-        track_cells: bool = False,
-        max_range: float | None = None,
+        options: EpisodeOptions | None = None,
     ) -> None:
+        options = options or EpisodeOptions()
         n = survival.n_robots
         k = spec.n_learners(n)
         if k > n:
@@ -188,26 +196,28 @@ class TaskEpisode:
             )
         self.spec, self.survival, self.world, self.look = spec, survival, survival.world, look
         self.k = k
-        self.episode_steps = spec.episode_steps if episode_steps is None else episode_steps
-        self.start = spec.start if start else None
-        self.max_start_draws = max_start_draws
-        self.max_range = max_range
+        steps = options.episode_steps
+        self.episode_steps = spec.episode_steps if steps is None else steps
+        self.start = spec.start if options.start else None
+        self.max_start_draws = options.max_start_draws
+        self.max_range = options.max_range
         fixed = spec.switch_values(n)
         self.start_led = fixed["led"].copy()
         self.wheels = np.zeros((n, 2))
         self.led, self.mate, self.recharge = fixed["led"], fixed["mate"], fixed["recharge"]
-        self.switches = spec.switches if switches is None else switches
+        self.switches = spec.switches if options.switches is None else options.switches
         arrays = dict(zip(SWITCHES, (self.led, self.mate, self.recharge), strict=True))
         self.action_switches = tuple(arrays[name] for name in self.switches)
+        rewarded = options.rewarded
         self.rewards = TaskRewards(
-            spec.rewards(reward),
-            scales or RewardScales(),
+            spec.rewards(options.reward),
+            options.scales or RewardScales(),
             survival,
             k if rewarded is None else rewarded,
             spec.target,
-            track_cells=track_cells,
+            track_cells=options.track_cells,
         )
-        self._collisions = np.zeros(n, dtype=bool) if collisions else None
+        self._collisions = np.zeros(n, dtype=bool) if options.collisions else None
         self._captures = 0
         self.frame: VisionFrame | None = None
         self.steps = 0
@@ -311,4 +321,4 @@ class TaskEpisode:
         return robot_observations(self.survival, self.frame, self.max_range, dtype)
 
 
-__all__ = ["START_DRAWS", "EpisodeStep", "Look", "TaskEpisode", "task_rules"]
+__all__ = ["START_DRAWS", "EpisodeOptions", "EpisodeStep", "Look", "TaskEpisode", "task_rules"]

@@ -26,12 +26,11 @@ import mujoco
 import numpy as np
 
 from cyber_rodent import constants as C
+from cyber_rodent.robot import robot_model
 from cyber_rodent.world import World, WorldConfig
 
 #: m, the deepest interpenetration of two bodies' collision geoms a scene may have.
 MAX_PENETRATION = 0.001
-#: m, robot centres stay this far inside the walls (the disc that contains a robot).
-_ROBOT_MARGIN = C.BODY_RADIUS
 #: m, pack centres stay this far inside the walls.
 _PACK_MARGIN = C.PACK_RADIUS + 0.01
 #: m, half the side of the paper's field, which the families' scenes are drawn in
@@ -113,7 +112,7 @@ def valid(world: World, scene: Scene) -> bool:
     """Whether ``scene`` stands inside the walls with no interpenetrating bodies (placed)."""
     half = world.config.field_size / 2
     for x, y, _ in scene.robots:
-        if max(abs(x), abs(y)) > half - _ROBOT_MARGIN:
+        if max(abs(x), abs(y)) > half - robot_model().body_radius:
             return False
     for x, y in scene.packs:
         if max(abs(x), abs(y)) > half - _PACK_MARGIN:

@@ -33,6 +33,7 @@ import math
 import numpy as np
 
 from cyber_rodent import constants as C
+from cyber_rodent.robot import robot_model
 from cyber_rodent.vision.hard_scenes import (
     Family,
     Scene,
@@ -47,8 +48,6 @@ from cyber_rodent.vision.hard_scenes import (
 )
 from cyber_rodent.world import World
 
-#: m, robot centres stay this far inside the walls when a row is laid out.
-_ROBOT_MARGIN = C.BODY_RADIUS
 #: m, half the side of the paper's field.
 _HALF = C.FIELD_SIZE / 2
 #: m, the largest sideways shift of a robot off the row's line (``rows``).
@@ -135,7 +134,7 @@ def _rows(rng: np.random.Generator) -> Scene:
         offsets = np.array(
             [ahead(0.0, 0.0, direction, a, b) for a, b in zip(along, lateral, strict=True)]
         )
-        start = _fit(rng, offsets, _ROBOT_MARGIN)
+        start = _fit(rng, offsets, robot_model().body_radius)
         if start is not None:
             break
     # A row too long for the field in every direction tried: outside the walls, drawn again.
@@ -145,7 +144,7 @@ def _rows(rng: np.random.Generator) -> Scene:
         x, y = x0 + float(dx), y0 + float(dy)
         robots.append((x, y, _facing(rng, x, y, x0, y0)))
     while len(robots) < n:
-        robots.append((*inside(rng, _ROBOT_MARGIN), random_yaw(rng)))
+        robots.append((*inside(rng, robot_model().body_radius), random_yaw(rng)))
     packs = [inside(rng, 0.1)]
     designed = [(0, t) for j in range(2, length) for t in (led(j), face(j, n))]
     return Scene(tuple(robots), tuple(packs), random_leds(rng, n), tuple(designed))
@@ -154,7 +153,7 @@ def _rows(rng: np.random.Generator) -> Scene:
 def _pack_behind(rng: np.random.Generator) -> Scene:
     """Two robots 0.3-2 m from the observer, a pack behind each (see the module docstring)."""
     n = 3
-    x0, y0 = inside(rng, _ROBOT_MARGIN)
+    x0, y0 = inside(rng, robot_model().body_radius)
     robots = [(x0, y0, random_yaw(rng))]
     packs = []
     first = random_yaw(rng)
@@ -173,7 +172,7 @@ def _pack_behind(rng: np.random.Generator) -> Scene:
 def _behind_robot(rng: np.random.Generator) -> Scene:
     """A far robot 0.5-2 m away behind a middle robot (see the module docstring)."""
     n = 3
-    x0, y0 = inside(rng, _ROBOT_MARGIN)
+    x0, y0 = inside(rng, robot_model().body_radius)
     direction = random_yaw(rng)
     far = rng.uniform(0.5, 2.0)
     middle = rng.uniform(0.25, far - 0.25)

@@ -68,8 +68,9 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--policies",
         default="trained",
-        choices=("trained", "reactive"),
-        help="basic behaviours: the shipped trained values or the reactive baseline",
+        metavar="{trained,reactive,DIR}",
+        help="basic behaviours: the shipped trained values, the reactive baseline, or a "
+        "directory of values trained by train-behaviours (e.g. for another robot body)",
     )
     p.add_argument("--resume", action="store_true", help="continue the run(s) in --out")
     p.add_argument("--force", action="store_true", help="replace the run(s) in --out")

@@ -49,6 +49,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "differences from the hardware profile's ranges",
     )
     parser.add_argument(
+        "--robot",
+        default="cyber_rodent",
+        help="the body to train on, a name of cyber_rodent.robot.ROBOTS (default: "
+        "cyber_rodent, the paper's robot; small_disc: an e-puck class robot)",
+    )
+    parser.add_argument(
         "--config",
         default=None,
         help="TOML or JSON file of survival.* settings (the rules of an evolution run)",
@@ -72,6 +78,10 @@ def run(args: argparse.Namespace) -> int:
     profile = profile_by_name(args.profile)
     if args.randomise and profile is None:
         profile = HardwareProfile()  # the ranges the episodes are drawn from
+    from cyber_rodent.robot import robot_names
+    from cyber_rodent.validation import check_choice
+
+    check_choice("--robot", args.robot, robot_names())
     names = BEHAVIOUR_NAMES if args.behaviour is None else (args.behaviour,)
     for name in names:
         spec(name)  # unknown name: fail before any work
@@ -89,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
             profile=profile,
             randomise=args.randomise,
             survival=survival,
+            robot=args.robot,
         )
         recent = result.curve[-100:]
         if has_goal(name):

@@ -73,6 +73,7 @@ import mujoco
 import numpy as np
 
 from behaviours import BehaviourPolicies
+from behaviours.inputs import BEHAVIOUR_NAMES
 from cyber_rodent.atomic import atomic_output, remove_stale_temporaries, write_text
 from cyber_rodent.plugins import Plugin, ensure_loaded, plugin_records, plugins_from_records, short
 from cyber_rodent.validation import check_integer
@@ -129,7 +130,8 @@ class RunSpec:
     flat names of earlier versions (``{"population_size": 20}``); see :func:`make_config`"""
     policies: BehaviourPolicies | str = "trained"
     """the basic behaviours: ``"trained"`` (the shipped values), ``"reactive"`` (the
-    hand-written baseline) or the policies themselves"""
+    hand-written baseline), a directory of trained values (:func:`check_policies`) or the
+    policies themselves"""
     max_steps: int | None = None
     """stop after this many world control steps in all, even if the generations are not
     complete (None: no budget)"""
@@ -161,18 +163,41 @@ class RunOutput:
     """show a progress bar (a line a minute where stderr is no terminal)"""
 
 
-def policies_by_name(name: str) -> BehaviourPolicies:
-    """``"trained"`` (the shipped values) or ``"reactive"`` (the hand-written baseline).
+def check_policies(name: object) -> str:
+    """``name`` if it names basic behaviours: ``"trained"``, ``"reactive"``, or a directory
+    holding the three behaviours' trained values (``mate.npz``, ``forage.npz``, ``search.npz``,
+    as ``train-behaviours --out DIR`` writes them: behaviours trained for another robot body).
 
     Raises:
-        ValueError: another name.
+        ValueError: anything else, in one line.
+    """
+    if isinstance(name, str) and name in POLICY_NAMES:
+        return name
+    if isinstance(name, str | os.PathLike) and all(
+        (Path(name) / f"{behaviour}.npz").is_file() for behaviour in BEHAVIOUR_NAMES
+    ):
+        return str(name)
+    raise ValueError(
+        f"policies must be {' or '.join(POLICY_NAMES)} or a directory with "
+        f"{', '.join(f'{b}.npz' for b in BEHAVIOUR_NAMES)} (train-behaviours --out DIR), "
+        f"got {name!r}"
+    )
+
+
+def policies_by_name(name: str) -> BehaviourPolicies:
+    """``"trained"`` (the shipped values), ``"reactive"`` (the hand-written baseline) or a
+    directory of trained values (:func:`check_policies`).
+
+    Raises:
+        ValueError: another name, or values that do not load.
         FileNotFoundError: ``"trained"`` and the trained values are not installed.
     """
+    name = check_policies(name)
     if name == "trained":
         return default_policies()
     if name == "reactive":
         return BehaviourPolicies.reactive()
-    raise ValueError(f"unknown policies {name!r}; allowed: {', '.join(POLICY_NAMES)}")
+    return BehaviourPolicies.from_directory(name)
 
 
 def make_config(

@@ -91,6 +91,7 @@ from evolution.lab.api import (
     RunOutput,
     RunSpec,
     check_plugins,
+    check_policies,
     check_run_config,
     execute,
     extra_tables,
@@ -115,7 +116,6 @@ from evolution.runner.settings import merge
 from evolution.schemes import scheme_names
 
 EXECUTORS = ("local", "ray")
-POLICIES = ("trained", "reactive")
 #: Orders in which a sweep's runs start (:attr:`SweepSpec.runs`): cell by cell, or seed by
 #: seed across every cell (a sweep stopped part-way then has a few seeds of every cell).
 RUN_ORDERS = ("cell", "seed")
@@ -166,8 +166,8 @@ class SweepSpec:
         seeds: the seeds, each run once per method (and cell).
         generations: generations per run.
         overrides: settings passed to every run (see :func:`evolution.lab.api.make_config`).
-        policies: basic behaviours: ``"trained"`` (the shipped values) or ``"reactive"`` (the
-            hand-written baseline).
+        policies: basic behaviours: ``"trained"`` (the shipped values), ``"reactive"`` (the
+            hand-written baseline) or a directory of trained values (``check_policies``).
         grid: axes of settings, ``((dotted key, values), ...)``; every cell of their product
             runs every method and seed, its settings over ``overrides``. Empty: one cell.
         max_steps: stop each run after this many control steps even if its generations are
@@ -189,7 +189,7 @@ class SweepSpec:
     seeds: tuple[int, ...]
     generations: int
     overrides: dict[str, Any] = field(default_factory=dict)
-    policies: str = choice("trained", POLICIES)
+    policies: str = "trained"
     grid: Grid = ()
     max_steps: int | None = None
     cell_list: tuple[Cell, ...] = ()
@@ -199,6 +199,7 @@ class SweepSpec:
 
     def __post_init__(self) -> None:
         validate_fields(self)
+        check_policies(self.policies)
         if not isinstance(self.plugins, tuple) or not all(
             isinstance(p, PluginSource) for p in self.plugins
         ):

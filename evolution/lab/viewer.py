@@ -287,16 +287,16 @@ class TaskSource:
         from behaviours.definitions import spec as behaviour_spec
         from behaviours.inputs import BEHAVIOUR_NAMES, MATE, SEARCH, behaviour_inputs
         from cyber_rodent import tasks
-        from cyber_rodent.commands import COMMAND_SPEEDS
+        from cyber_rodent.commands import command_speeds
 
         self._inputs = behaviour_inputs
-        self._speeds = COMMAND_SPEEDS
         self._mate, self._search = MATE, SEARCH
         self.name, self.seed, self.policies = name, seed, policies
         self.env = tasks.load(name, seed=seed)
         self.env.reset()
         self.task = self.env.task
         self.world = self.task.world
+        self._speeds = command_speeds(self.world.robot)
         self.survival = self.task.survival
         # A behaviour's own task (its training episode) runs that behaviour alone.
         self.fixed: int | None = (
@@ -309,7 +309,10 @@ class TaskSource:
 
     def _read_inputs(self) -> BehaviourInputs:
         world = self.world
-        return self._inputs(self.task.frame, world.range_readings(), world.range_max)
+        return self._inputs(
+            self.task.frame, world.range_readings(), world.range_max,
+            proximity=world.robot.proximity,
+        )  # fmt: skip
 
     def _choose(self, inputs: BehaviourInputs) -> None:
         k = self.task.k

@@ -38,7 +38,6 @@ from behaviours.kernels import (
     map_inputs_reference,
 )
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
-from cyber_rodent.constants import PROXIMITY_SIX
 from cyber_rodent.vision import BATTERY, FACE, LED, N_CLASSES, GeometricVision, VisionProvider
 from cyber_rodent.vision.detections import apply_noise
 from cyber_rodent.vision.kernels import NearestTargets
@@ -81,7 +80,7 @@ class Perception:
         self.world = world
         self.vision = vision
         self.range_noise = range_noise
-        columns = np.asarray(PROXIMITY_SIX, dtype=np.int64)
+        columns = np.asarray(world.robot.proximity, dtype=np.int64)
         ranges = np.zeros((n, world.range_max.shape[1]))
         self.sensors = RangeSensors(
             # With noise the mapping reads the noisy readings (saturation leaves them as they
@@ -104,7 +103,7 @@ class Perception:
                 visible=np.zeros((n, N_CLASSES), dtype=np.bool_),
             )
         self.inputs = InputBuffers(
-            proximity=np.zeros((n, len(PROXIMITY_SIX))),
+            proximity=np.zeros((n, len(columns))),
             norm_bearing=np.full((n, N_CLASSES), 0.5),
             norm_distance=np.ones((n, N_CLASSES)),
             behaviour=BehaviourInputs(

@@ -46,7 +46,7 @@ import numpy as np
 from behaviours import BehaviourPolicies
 from behaviours.policies import raise_for_status
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
-from cyber_rodent.commands import COMMAND_SPEEDS
+from cyber_rodent.commands import command_speeds
 from cyber_rodent.profiles import ActuatorSample, RangeSensorNoise, apply_actuators
 from cyber_rodent.survival import SurvivalWorld
 from cyber_rodent.survival.watchdog import Watchdog
@@ -238,7 +238,9 @@ class EvolutionRunner:
             self.scheduler.active_weights, robots, perception.inputs, evo.max_energy,
             evo.max_recharge_steps, backend=self.backend, controller=resolve(evo),
             state=self.scheduler.controller_state, lifetime_steps=evo.lifetime_steps,
+            top_speed=self.world.robot.top_speed,
         )  # fmt: skip
+        speeds = command_speeds(self.world.robot)
         # The controller's fused calls: the paper's own kernels for the paper's controller and
         # inputs, else built in this process around its rule (evolution.controllers).
         kernels = self.controller.kernels
@@ -252,7 +254,7 @@ class EvolutionRunner:
             decided = Decide(self.controller.rules, robots, self.controller.buffers)
             learn_act = LearnAct(
                 tables, learning.values, learning.episodes, learning.step_buffers,
-                survival.docked, COMMAND_SPEEDS, self.action,
+                survival.docked, speeds, self.action,
             )  # fmt: skip
             learn_kernel = pick(self.backend, kernels.learn, kernels.learn_reference)
             fused_learning = bind(learn_kernel, self.vision.scene, perceive, decided, learn_act)
@@ -268,7 +270,7 @@ class EvolutionRunner:
                 perception.sensors, perception.nearest, perception.rules, perception.inputs
             )
             decided = Decide(self.controller.rules, robots, self.controller.buffers)
-            act = Act(tables, survival.docked, COMMAND_SPEEDS, self.action)
+            act = Act(tables, survival.docked, speeds, self.action)
             kernel = pick(self.backend, kernels.act, kernels.act_reference)
             fused = bind(kernel, self.vision.scene, perceive, decided, act)
 
@@ -280,7 +282,7 @@ class EvolutionRunner:
             self.sense_decide_act = self.sense_decide_act_stepwise
         self._steer = bind(
             pick(self.backend, steer, steer_reference),
-            self.controller.buffers, survival.docked, COMMAND_SPEEDS, self.action,
+            self.controller.buffers, survival.docked, speeds, self.action,
         )  # fmt: skip
 
     # --- the hot loop ----------------------------------------------------------------------

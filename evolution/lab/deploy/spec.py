@@ -1,9 +1,10 @@
 """The content of a bundle's ``bundle.json``: everything a robot engineer needs, from one source.
 
-Every number comes from the run's resolved :class:`~evolution.runner.RunConfig`, from
-:mod:`cyber_rodent.constants`, from the command table or from the robot's compiled MJCF model
-(sensor positions); the README (:mod:`evolution.lab.deploy.readme`) is rendered from this dict
-only, so the two cannot disagree. The meaning of the rules is docs/design.md §4 (the robot),
+Every number comes from the run's resolved :class:`~evolution.runner.RunConfig`, from the
+robot's model (:mod:`cyber_rodent.robot`, the run's ``world.robot``), from the command table or
+from the robot's compiled MJCF model (sensor positions); the README
+(:mod:`evolution.lab.deploy.readme`) is rendered from this dict only, so the two cannot
+disagree. The meaning of the rules is docs/design.md §4 (the robot),
 §5 (the paper's rules) and §9 (the choices where the paper is silent).
 """
 
@@ -18,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from cyber_rodent.robot import RobotModel
 from evolution.controllers import CONTROLLERS, ControllerLayout, resolve
 from evolution.input_kernels import row_record
 from evolution.runner.config import RunConfig
@@ -49,20 +51,24 @@ def _rounded(values: Any, digits: int = 6) -> list[float]:
     return [round(float(v), digits) + 0.0 for v in values]
 
 
-def robot_geometry() -> dict[str, Any]:
+def robot_geometry(robot: RobotModel | None = None) -> dict[str, Any]:
     """Sensor, camera and IR-port poses in the robot frame, read from the compiled robot model.
 
+    Args:
+        robot: the robot (default: the paper's, ``cyber_rodent.robot.cyber_rodent()``).
+
     Returns:
-        ``rangefinders`` (per sensor of :data:`cyber_rodent.constants.RANGE_SENSORS`, in
-        reading order: name, angle, range, position, direction), ``camera`` and ``ir_port``
-        (position, direction).
+        ``rangefinders`` (per range sensor of the robot's sensor table, in reading order:
+        name, angle, range, position, direction), ``camera`` and ``ir_port`` (position,
+        direction).
     """
     import mujoco
 
-    from cyber_rodent import constants as C
-    from cyber_rodent.assets import asset_path
+    from cyber_rodent.robot import cyber_rodent
 
-    model = mujoco.MjModel.from_xml_path(str(asset_path(C.ROBOT_XML)))
+    robot = robot or cyber_rodent()
+    parts = robot.parts
+    model = mujoco.MjModel.from_xml_path(str(robot.xml_path()))
 
     def pose(site: str) -> tuple[list[float], list[float]]:
         i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
@@ -74,8 +80,10 @@ def robot_geometry() -> dict[str, Any]:
         return _rounded(position), _rounded(matrix.reshape(3, 3)[:, 2], 4)
 
     rangefinders = []
-    for index, (name, angle, reach) in enumerate(C.RANGE_SENSORS):
-        position, direction = pose(name)
+    proximity = robot.proximity
+    for index, row in enumerate(robot.range_sensors):
+        name, angle, reach = row.name, row.bearing_deg, row.limit
+        position, direction = pose(row.site_name)
         rangefinders.append(
             {
                 "index": index,
@@ -85,12 +93,12 @@ def robot_geometry() -> dict[str, Any]:
                 "position_m": position,
                 "direction": direction,
                 "proximity_input": (
-                    C.PROXIMITY_SIX.index(index) if index in C.PROXIMITY_SIX else None
+                    proximity.index(index) if index in proximity else None
                 ),
             }
         )
-    camera_position, _ = pose(C.CAMERA_MOUNT_SITE)
-    port_position, port_direction = pose(C.IR_PORT_SITE)
+    camera_position, _ = pose(parts.camera_site)
+    port_position, port_direction = pose(parts.ir_port_site)
     return {
         "rangefinders": rangefinders,
         "camera_position_m": camera_position,
@@ -176,13 +184,15 @@ def _controller_inputs(
     return [row_record(row, i, numbers) for i, row in enumerate(layout.inputs)]
 
 
-def _survival(config: RunConfig, half_wheel_base: float) -> dict[str, Any]:
+def _survival(config: RunConfig, robot: RobotModel) -> dict[str, Any]:
     """The bookkeeping a robot runs itself: energy, recharging, reflex, time sharing, mating."""
+    from cyber_rodent.commands import motor_scale
     from cyber_rodent.survival.energy import recharge_gain
 
     s, evo = config.survival, config.evolution
     dt = s.control_dt
-    turn = s.reflex_wheel_speed * dt / half_wheel_base
+    reflex_speed = s.reflex_wheel_speed * motor_scale(robot)
+    turn = reflex_speed * dt / robot.half_wheel_base
     return {
         "energy": {
             "initial": s.initial_energy,
@@ -212,14 +222,14 @@ def _survival(config: RunConfig, half_wheel_base: float) -> dict[str, Any]:
             "after_switch_while_docked": True,
             "min_steps": s.reflex_min_steps,
             "max_steps": s.reflex_max_steps,
-            "wheel_speed_m_s": s.reflex_wheel_speed,
+            "wheel_speed_m_s": reflex_speed,
             "turn_per_step_rad": turn,
             "turn_deg": [
                 math.degrees(turn * s.reflex_min_steps),
                 math.degrees(turn * s.reflex_max_steps),
             ],
             "rule": f"a spin of {s.reflex_min_steps} to {s.reflex_max_steps} steps (uniform) at "
-            f"{s.reflex_wheel_speed:g} m/s rim speed, left (-v, +v) or right (+v, -v) with "
+            f"{reflex_speed:g} m/s rim speed, left (-v, +v) or right (+v, -v) with "
             "p = 0.5; the controller's wheel commands are ignored, and the robot can neither "
             "dock nor mate, until it ends",
         },
@@ -277,16 +287,18 @@ def bundle_spec(
             greedy tables only).
     """
     from behaviours.inputs import BEHAVIOUR_NAMES
-    from cyber_rodent import constants as C
-    from cyber_rodent.commands import COMMAND_SET_VERSION, WHEEL_COMMANDS
+    from cyber_rodent.commands import COMMAND_SET_VERSION, WHEEL_COMMANDS, command_speeds
+    from cyber_rodent.robot import robot_model
     from cyber_rodent.vision.types import CLASS_NAMES, DEFAULT_MAX_DISTANCE
+
+    robot = robot_model(config.world.robot)
 
     evo, survival, camera = config.evolution, config.survival, config.camera
     layout = check_deployable(config)
     n_inputs = layout.n_inputs
     recharge, selection_genes = layout.block("recharge"), layout.block("selection")
     max_distance = float(DEFAULT_MAX_DISTANCE)
-    geometry = robot_geometry()
+    geometry = robot_geometry(robot)
     columns = {row.arg: i for i, row in enumerate(layout.inputs) if row.observation == "proximity"}
     for finder in geometry["rangefinders"]:
         k = finder["proximity_input"]
@@ -334,9 +346,9 @@ def bundle_spec(
             "(counter-clockwise), (+v, -v) right",
             "wheel_unit": "wheel rim speed, m/s; motor angular speed = speed / wheel_radius_m "
             "rad/s",
-            "wheel_radius_m": C.WHEEL_RADIUS,
-            "half_wheel_base_m": C.HALF_WHEEL_BASE,
-            "top_speed_m_s": C.TOP_SPEED,
+            "wheel_radius_m": robot.wheel_radius,
+            "half_wheel_base_m": robot.half_wheel_base,
+            "top_speed_m_s": robot.top_speed,
         },
         "sensors": {
             "rangefinders": geometry["rangefinders"],
@@ -385,9 +397,9 @@ def bundle_spec(
             "max_energy": float(evo.max_energy),
             "max_recharge_steps": int(evo.max_recharge_steps),
             "max_distance": max_distance,
-            "range_sensors": [name for name, _, _ in C.RANGE_SENSORS],
-            "range_max": [float(C.RANGE_SENSORS[i][2]) for i in C.PROXIMITY_SIX],
-            "proximity_sensors": list(C.PROXIMITY_SIX),
+            "range_sensors": [row.name for row in robot.range_sensors],
+            "range_max": [float(robot.range_sensors[i].limit) for i in robot.proximity],
+            "proximity_sensors": list(robot.proximity),
             "proximity": "clip(1 - range / range_max, 0, 1)",
             "bearing": "clip((bearing_rad + pi) / (2 pi), 0, 1); unseen: bearing 0 rad (0.5)",
             "distance": f"clip(distance_m / {max_distance:.6g}, 0, 1); unseen: 1",
@@ -406,10 +418,10 @@ def bundle_spec(
         },
         "commands": {
             "names": [c.name for c in WHEEL_COMMANDS],
-            "speeds": [[c.left, c.right] for c in WHEEL_COMMANDS],
+            "speeds": command_speeds(robot).tolist(),
             "unit": "wheel rim speed, m/s (left, right)",
         },
-        "survival": _survival(config, C.HALF_WHEEL_BASE),
+        "survival": _survival(config, robot),
         "selection": selection or {},
         "provenance": provenance or {},
         "run_config": dataclasses.asdict(config),
