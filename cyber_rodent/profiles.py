@@ -31,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -611,7 +612,7 @@ def profile_from_record(record: object) -> HardwareProfile:
 
 
 def save_profile(
-    path: str | os.PathLike[str], profile: HardwareProfile, provenance: dict[str, object]
+    path: str | os.PathLike[str], profile: HardwareProfile, provenance: Mapping[str, object]
 ) -> Path:
     """Write ``profile`` (and what produced it) as a profile file, atomically."""
     record = {

@@ -42,7 +42,8 @@ from cyber_rodent.profiles import (
 from cyber_rodent.sysid.log import CAMERA_CLASSES, RunLog, wrap_angle
 from cyber_rodent.sysid.replay import NOMINAL_DRIVE, Replayer, Segment, segments
 from cyber_rodent.validation import integer, number, validate_fields
-from cyber_rodent.vision import CameraConfig, make_provider
+from cyber_rodent.vision import CameraConfig
+from cyber_rodent.vision.geometric import GeometricVision
 from cyber_rodent.world import World, WorldConfig
 
 DRIVE_LOW = np.array([0.1, 0.1, 0.005, 0.05])
@@ -199,7 +200,7 @@ def sensor_samples(
         world = World(config_w)
         for j, (x, y) in enumerate(log.packs):
             world.set_pack_position(j, float(x), float(y))
-        provider = make_provider("geometric", world, CameraConfig())
+        provider = GeometricVision(world, CameraConfig())
         segment_of = {}
         for s in segments(log, config.segment_s):
             for step in s.rows["step"]:
@@ -325,7 +326,8 @@ def sysid(logs: list[RunLog], config: SysidConfig | None = None) -> SysidResult:
     rng = np.random.default_rng(np.random.SeedSequence([config.seed, 0xB007]))
     replayers = [Replayer(log) for log in logs]
     robots = sorted({r for log in logs for r in log.robots})
-    fitted, held = [], []
+    fitted: list[tuple[int, int, int]] = []
+    held: list[tuple[int, int, int]] = []
     per_robot: dict[int, list[tuple[int, Segment]]] = {r: [] for r in robots}
     for li, log in enumerate(logs):
         for s in segments(log, config.segment_s):

@@ -64,7 +64,8 @@ class DriveWriter:
 
     def wheel_speeds(self) -> np.ndarray:
         """(n, 2) wheel rim speeds, m/s (what an encoder measures)."""
-        return self.world.data.qvel[self.wheel_dof] * self.world.wheel_radius
+        speeds: np.ndarray = self.world.data.qvel[self.wheel_dof] * self.world.wheel_radius
+        return speeds
 
 
 @dataclass(frozen=True)
