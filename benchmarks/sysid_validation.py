@@ -61,7 +61,8 @@ def main() -> int:
         for name, (value, se) in result.parameters.items():
             recovery.append({"true_robot": seed, "parameter": name, "true": hidden[name],
                              "fitted": value, "se": se,
-                             "abs_error_over_se": abs(value - hidden[name]) / se if se > 0 else np.inf})  # fmt: skip
+                             "abs_error_over_se":
+                                 abs(value - hidden[name]) / se if se > 0 else np.inf})  # fmt: skip
         samples = {
             "hand-set": gap_samples([log], HardwareProfile(), config, all_segments=False),
             "fitted": gap_samples([log], result.profile, config, all_segments=False),
@@ -78,11 +79,11 @@ def main() -> int:
     write_text(out / "recovery.csv", rec.to_csv(index=False, float_format="%.5g"))
     write_text(out / "gap.csv", gap.to_csv(index=False, float_format="%.5g"))
     merged = {label: {k: np.concatenate(v) for k, v in s.items()} for label, s in pooled.items()}
-    for label, s in merged.items():  # the miss rates: one per true robot, averaged
+    for s in merged.values():  # the miss rates: one per true robot, averaged
         s["cam_miss_observed"] = np.array([s["cam_miss_observed"].mean()])
         s["cam_miss_predicted"] = np.array([s["cam_miss_predicted"].mean()])
-    gap_figure(merged, args.figure,
-               "Reality gap on held-out segments, 3 hidden true robots: hand-set vs fitted profile")  # fmt: skip
+    title = "Reality gap on held-out segments, 3 hidden true robots: hand-set vs fitted"
+    gap_figure(merged, args.figure, title)
     commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
                             text=True).stdout.strip()  # fmt: skip
     dirty = bool(subprocess.run(["git", "status", "--porcelain", "--", "cyber_rodent"], cwd=ROOT,
