@@ -29,13 +29,20 @@ motor has 50 ms) and robot 2 at 70 % wheel gain ("one robot was weaker").
 from __future__ import annotations
 
 import dataclasses
+import json
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from cyber_rodent import constants as C
+from cyber_rodent.atomic import write_json
 from cyber_rodent.validation import (
+    RULE,
     boolean,
     check_choice,
     check_number,
@@ -137,6 +144,17 @@ class ActuatorVariation:
         high = check_number("actuators.motor_lag_s[1]", lag[1], low, 1.0)
         object.__setattr__(self, "motor_lag_s", (low, high))
 
+    def sample(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(n, 2) wheel gains, (n,) friction factors and (n,) motor lags of ``n`` robots,
+        drawn from the ranges (the weak robot's factor included)."""
+        s, f = self.wheel_gain_spread, self.friction_spread
+        gain = rng.uniform(1.0 - s, 1.0 + s, size=(n, 2))
+        friction = rng.uniform(1.0 - f, 1.0 + f, size=n)
+        lag = rng.uniform(*self.motor_lag_s, size=n)
+        if self.weak_robot >= 0:
+            gain[self.weak_robot] *= self.weak_gain
+        return gain, friction, lag
+
 
 @dataclass(frozen=True)
 class FieldLayout:
@@ -199,6 +217,10 @@ class HardwareProfile:
     @property
     def enabled_parts(self) -> tuple[str, ...]:
         return tuple(p for p in PROFILE_PARTS if getattr(self, p).enabled)
+
+    def randomised(self, rng: np.random.Generator) -> HardwareProfile:
+        """A profile for one episode of domain randomisation (see :func:`randomised`)."""
+        return _randomised_ranges(self, rng)
 
 
 def profile_by_name(name: str) -> HardwareProfile | None:
@@ -286,12 +308,7 @@ def apply_actuators(
             f"actuators.weak_robot must be in [-1, {n - 1}] for a {n}-robot world, "
             f"got {variation.weak_robot}"
         )
-    s, f = variation.wheel_gain_spread, variation.friction_spread
-    gain = rng.uniform(1.0 - s, 1.0 + s, size=(n, 2))
-    friction = rng.uniform(1.0 - f, 1.0 + f, size=n)
-    lag = rng.uniform(*variation.motor_lag_s, size=n)
-    if variation.weak_robot >= 0:
-        gain[variation.weak_robot] *= variation.weak_gain
+    gain, friction, lag = variation.sample(n, rng)
     motors, geoms = _wheel_ids(world)
     m = world.model
     m.actuator_gainprm[motors, 0] = m.actuator_gainprm[motors, 0] * gain
@@ -336,6 +353,12 @@ class RangeSensorNoise:
 
 
 def randomised(profile: HardwareProfile, rng: np.random.Generator) -> HardwareProfile:
+    """A profile sampled from ``profile``'s ranges, for domain randomisation
+    (:meth:`HardwareProfile.randomised`; a fitted profile draws within its uncertainty)."""
+    return profile.randomised(rng)
+
+
+def _randomised_ranges(profile: HardwareProfile, rng: np.random.Generator) -> HardwareProfile:
     """A profile sampled from ``profile``'s ranges, for domain randomisation.
 
     Each magnitude (range noise std and dropout, vision noise, wheel-gain and friction spreads,
@@ -363,12 +386,296 @@ def randomised(profile: HardwareProfile, rng: np.random.Generator) -> HardwarePr
     )
 
 
+# --- a profile fitted to a robot's logs (cyber_rodent.sysid) ------------------------------------
+#: ``format`` of a profile file (``cyber-rodent sysid --out``; ``--profile FILE``).
+PROFILE_FILE_FORMAT = "cyber-rodent-profile"
+#: Version of the profile file's layout; a reader refuses others.
+PROFILE_FILE_VERSION = 1
+#: Bounds of a fitted per-robot value: a wheel gain factor, a friction factor, a motor lag (s).
+FITTED_GAIN = (0.1, 3.0)
+FITTED_FRICTION = (0.05, 5.0)
+FITTED_LAG = (0.001, 1.0)
+
+
+def _per_robot(
+    name: str, values: object, low: float, high: float, width: int = 0
+) -> tuple[Any, ...]:
+    """``values`` as a tuple of numbers (``width`` 0) or of ``width``-tuples, each in range."""
+    if not isinstance(values, tuple | list) or not values:
+        raise ValueError(f"{name} must be a non-empty list (one entry per robot), got {values!r}")
+    out: list[Any] = []
+    for i, v in enumerate(values):
+        if width:
+            if not isinstance(v, tuple | list) or len(v) != width:
+                raise ValueError(f"{name}[{i}] must be {width} numbers, got {v!r}")
+            out.append(
+                tuple(check_number(f"{name}[{i}][{j}]", x, low, high) for j, x in enumerate(v))
+            )
+        else:
+            out.append(check_number(f"{name}[{i}]", v, low, high))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class FittedActuators(ActuatorVariation):
+    """Each logged robot's drive as fitted (:mod:`cyber_rodent.sysid`), with its uncertainty.
+
+    An :class:`ActuatorVariation` whose :meth:`sample` returns the fitted robots' values
+    instead of drawing from ranges (the range fields are unused). Which fitted robot each
+    simulated robot is gets drawn per world: a random permutation of the fitted robots
+    (repeated when the world has more robots), so a one-robot episode runs on each of them in
+    turn. ``weak_robot`` is -1: a weak robot shows in its fitted gains.
+
+    Attributes:
+        wheel_gain: per robot (left, right) gain factor of the wheel servo (the wheel settles at
+            ``gain x`` the command); range [0.1, 3]; source: the fit (default 1, the model).
+        wheel_gain_sd: per robot (left, right) standard error of the gain (bootstrap over log
+            segments); >= 0; default 0.
+        friction_scale: per robot factor on the wheel-floor sliding friction; range [0.05, 5];
+            default 1.
+        friction_scale_sd: its standard error; >= 0; default 0.
+        motor_lag: per robot motor time constant, s; range [0.001, 1]; default 0.05 (the model).
+        motor_lag_sd: its standard error, s; >= 0; default 0.
+    """
+
+    weak_robot: int = integer(-1, -1, -1)
+    wheel_gain: tuple[tuple[float, float], ...] = ((1.0, 1.0),)
+    wheel_gain_sd: tuple[tuple[float, float], ...] = ((0.0, 0.0),)
+    friction_scale: tuple[float, ...] = (1.0,)
+    friction_scale_sd: tuple[float, ...] = (0.0,)
+    motor_lag: tuple[float, ...] = (0.05,)
+    motor_lag_sd: tuple[float, ...] = (0.0,)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        fields = {
+            "wheel_gain": _per_robot("actuators.wheel_gain", self.wheel_gain, *FITTED_GAIN, 2),
+            "wheel_gain_sd": _per_robot("actuators.wheel_gain_sd", self.wheel_gain_sd, 0, 10, 2),
+            "friction_scale": _per_robot(
+                "actuators.friction_scale", self.friction_scale, *FITTED_FRICTION
+            ),
+            "friction_scale_sd": _per_robot(
+                "actuators.friction_scale_sd", self.friction_scale_sd, 0, 10
+            ),
+            "motor_lag": _per_robot("actuators.motor_lag", self.motor_lag, *FITTED_LAG),
+            "motor_lag_sd": _per_robot("actuators.motor_lag_sd", self.motor_lag_sd, 0, 10),
+        }
+        n = len(fields["wheel_gain"])
+        for name, value in fields.items():
+            if len(value) != n:
+                raise ValueError(
+                    f"actuators.{name} must have one entry per fitted robot ({n}), got {len(value)}"
+                )
+            object.__setattr__(self, name, value)
+
+    @property
+    def n_fitted(self) -> int:
+        """Robots the fit describes."""
+        return len(self.wheel_gain)
+
+    def sample(self, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fitted values of ``n`` robots, each a fitted robot drawn without replacement
+        (a fresh permutation for every ``n_fitted`` robots)."""
+        k = self.n_fitted
+        which = np.concatenate([rng.permutation(k) for _ in range(-(-n // k))])[:n]
+        gain = np.asarray(self.wheel_gain, dtype=float)[which]
+        friction = np.asarray(self.friction_scale, dtype=float)[which]
+        lag = np.asarray(self.motor_lag, dtype=float)[which]
+        return gain, friction, lag
+
+    def drawn(self, rng: np.random.Generator) -> FittedActuators:
+        """A copy whose values are drawn from N(value, sd), clipped to their ranges."""
+
+        def draw(
+            values: tuple[Any, ...], sds: tuple[Any, ...], bounds: tuple[float, float]
+        ) -> np.ndarray:
+            v, sd = np.asarray(values, dtype=float), np.asarray(sds, dtype=float)
+            return np.clip(v + sd * rng.standard_normal(v.shape), *bounds)
+
+        gain = draw(self.wheel_gain, self.wheel_gain_sd, FITTED_GAIN)
+        friction = draw(self.friction_scale, self.friction_scale_sd, FITTED_FRICTION)
+        lag = draw(self.motor_lag, self.motor_lag_sd, FITTED_LAG)
+        return dataclasses.replace(
+            self,
+            wheel_gain=tuple((float(g[0]), float(g[1])) for g in gain),
+            friction_scale=tuple(map(float, friction)),
+            motor_lag=tuple(map(float, lag)),
+        )
+
+
+#: The scalar parameters of a fitted profile that carry an uncertainty: name -> (part, field).
+FITTED_SCALARS: dict[str, tuple[str, str]] = {
+    "range_noise.std": ("range_noise", "std"),
+    "range_noise.dropout": ("range_noise", "dropout"),
+    "vision.bearing_std_deg": ("vision", "bearing_std_deg"),
+    "vision.distance_rel_std": ("vision", "distance_rel_std"),
+    "vision.dropout": ("vision", "dropout"),
+}
+
+
+@dataclass(frozen=True)
+class FittedProfile(HardwareProfile):
+    """A :class:`HardwareProfile` fitted to a robot's logs (``cyber-rodent sysid``).
+
+    Its actuators are :class:`FittedActuators` (explicit per-robot values); its noise parts hold
+    the fitted magnitudes. Domain randomisation (:meth:`randomised`) draws every fitted value
+    from a normal distribution around it with its standard error (clipped to the field's
+    range), instead of scaling the magnitudes from zero as the hand-set profile does.
+
+    Attributes:
+        uncertainty: standard errors of the scalar noise parameters, as (name, sd) pairs with
+            names from :data:`FITTED_SCALARS`; each sd >= 0 (bootstrap over log segments).
+    """
+
+    actuators: ActuatorVariation = dataclasses.field(default_factory=FittedActuators)
+    uncertainty: tuple[tuple[str, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.actuators, FittedActuators):
+            raise ValueError(f"actuators must be FittedActuators, got {self.actuators!r}")
+        pairs = []
+        for item in self.uncertainty:
+            if not isinstance(item, tuple | list) or len(item) != 2:
+                raise ValueError(f"uncertainty entries must be (name, sd) pairs, got {item!r}")
+            name = check_choice("uncertainty name", item[0], tuple(FITTED_SCALARS))
+            pairs.append((name, check_number(f"uncertainty[{name}]", item[1], 0.0, 100.0)))
+        object.__setattr__(self, "uncertainty", tuple(pairs))
+
+    def sd(self, name: str) -> float:
+        """The standard error of scalar ``name`` (0 if the fit gave none)."""
+        return dict(self.uncertainty).get(name, 0.0)
+
+    def randomised(self, rng: np.random.Generator) -> HardwareProfile:
+        """A profile drawn around the fit: each value from N(value, sd), clipped to its
+        field's range; the drive's per-robot values likewise (:meth:`FittedActuators.drawn`)."""
+        z = rng.standard_normal(len(FITTED_SCALARS))
+        changes: dict[str, dict[str, float]] = {}
+        for k, (name, (part, field)) in enumerate(FITTED_SCALARS.items()):
+            config = getattr(self, part)
+            rule = next(f for f in dataclasses.fields(config) if f.name == field).metadata[RULE]
+            value = float(np.clip(getattr(config, field) + self.sd(name) * z[k], 0.0, rule.high))
+            changes.setdefault(part, {})[field] = value
+        parts = {p: dataclasses.replace(getattr(self, p), **c) for p, c in changes.items()}
+        assert isinstance(self.actuators, FittedActuators)
+        return dataclasses.replace(self, **parts, actuators=self.actuators.drawn(rng))
+
+
+def _part_from(cls: type, name: str, record: object) -> object:
+    if not isinstance(record, dict):
+        raise ValueError(f"profile file: {name} must be an object, got {record!r}")
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(record) - known)
+    if unknown:
+        raise ValueError(f"profile file: {name}.{unknown[0]} is not a field of {cls.__name__}")
+    values = {k: tuple(map(tuple, v)) if k == "wheel_gain" or k == "wheel_gain_sd"
+              else tuple(v) if isinstance(v, list) else v for k, v in record.items()}  # fmt: skip
+    return cls(**values)
+
+
+def profile_record(profile: HardwareProfile) -> dict[str, object]:
+    """The JSON object a profile file holds for ``profile`` (``kind``: hardware or fitted)."""
+    kind = "fitted" if isinstance(profile, FittedProfile) else "hardware"
+    return {"kind": kind, **json.loads(json.dumps(dataclasses.asdict(profile)))}
+
+
+def profile_from_record(record: object) -> HardwareProfile:
+    """The profile a profile file's ``profile`` object describes (:func:`profile_record`).
+
+    Raises:
+        ValueError: one line naming the first field that is missing, unknown or out of range.
+    """
+    if not isinstance(record, dict):
+        raise ValueError(f"profile file: profile must be an object, got {record!r}")
+    record = dict(record)
+    kind = check_choice(
+        "profile file: profile.kind", record.pop("kind", None), ("hardware", "fitted")
+    )
+    fitted = kind == "fitted"
+    classes = dict(
+        zip(
+            PROFILE_PARTS,
+            (RangeNoise, VisionUncertainty, FittedActuators if fitted else ActuatorVariation,
+             FieldLayout),
+            strict=True,
+        )
+    )  # fmt: skip
+    known = set(PROFILE_PARTS) | ({"uncertainty"} if fitted else set())
+    unknown = sorted(set(record) - known)
+    if unknown:
+        raise ValueError(f"profile file: profile.{unknown[0]} is not a part of a {kind} profile")
+    parts = {p: _part_from(c, p, record[p]) for p, c in classes.items() if p in record}
+    if fitted:
+        pairs = tuple(tuple(x) if isinstance(x, list) else x for x in record.get("uncertainty", []))
+        return FittedProfile(**parts, uncertainty=pairs)  # type: ignore[arg-type]
+    return HardwareProfile(**parts)  # type: ignore[arg-type]
+
+
+def save_profile(
+    path: str | os.PathLike[str], profile: HardwareProfile, provenance: Mapping[str, object]
+) -> Path:
+    """Write ``profile`` (and what produced it) as a profile file, atomically."""
+    record = {
+        "format": PROFILE_FILE_FORMAT,
+        "version": PROFILE_FILE_VERSION,
+        "profile": profile_record(profile),
+        "provenance": provenance,
+    }
+    return write_json(path, record)
+
+
+def load_profile(path: str | os.PathLike[str]) -> HardwareProfile:
+    """The profile in a profile file (:func:`save_profile`).
+
+    Raises:
+        ValueError: one line: not a readable JSON file, another format or version, or a bad
+            field (named).
+    """
+    p = Path(path)
+    try:
+        record = json.loads(p.read_text())
+    except (OSError, ValueError) as err:
+        raise ValueError(f"profile file {p}: cannot read it as JSON ({err})") from None
+    if not isinstance(record, dict) or record.get("format") != PROFILE_FILE_FORMAT:
+        raise ValueError(f"profile file {p}: format must be {PROFILE_FILE_FORMAT!r}")
+    if record.get("version") != PROFILE_FILE_VERSION:
+        raise ValueError(
+            f"profile file {p}: version must be {PROFILE_FILE_VERSION}, got "
+            f"{record.get('version')!r}"
+        )
+    try:
+        return profile_from_record(record.get("profile"))
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{p}: {err}") from None
+
+
+def profile_from_arg(text: str) -> HardwareProfile | None:
+    """What ``--profile TEXT`` names: ``sim`` (None), ``hardware``, or a profile file's path.
+
+    Raises:
+        ValueError: one line: neither a name nor an existing file, or a bad file.
+    """
+    if text in PROFILE_NAMES:
+        return profile_by_name(text)
+    if not Path(text).is_file():
+        raise ValueError(
+            f"--profile must be one of {', '.join(PROFILE_NAMES)} or a profile file "
+            f"(cyber-rodent sysid --out), got {text!r}"
+        )
+    return load_profile(text)
+
+
 __all__ = [
+    "FITTED_SCALARS",
+    "PROFILE_FILE_FORMAT",
+    "PROFILE_FILE_VERSION",
     "PROFILE_NAMES",
     "PROFILE_PARTS",
     "ActuatorSample",
     "ActuatorVariation",
     "FieldLayout",
+    "FittedActuators",
+    "FittedProfile",
     "HardwareProfile",
     "RangeNoise",
     "RangeSensorNoise",
@@ -376,6 +683,11 @@ __all__ = [
     "apply_actuators",
     "apply_field",
     "apply_vision",
+    "load_profile",
     "profile_by_name",
+    "profile_from_arg",
+    "profile_from_record",
+    "profile_record",
     "randomised",
+    "save_profile",
 ]

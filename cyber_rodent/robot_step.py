@@ -50,6 +50,14 @@ Usage::
     decision = robot.step(ranges=..., bearing=..., distance=..., visible=..., energy=...,
                           led_previous=..., docked=..., recharge_steps=...)
 
+A robot running the bundle logs what it did in the form the simulator's system identification
+reads (``cyber-rodent sysid``; columns :data:`LOG_COLUMNS`)::
+
+    log = StepLog("run.csv", groups=("encoders", "ir", "led", "camera"), packs=[...])
+    log.write_decision(step, t, robot_id, decision, ranges, bearing, distance, visible,
+                       wheel_left=..., wheel_right=...)   # encoders, m/s
+    log.close()
+
 Every argument is checked: a wrong length, NaN or inf, or a value out of its range raises one
 ``ValueError`` naming the argument, what it must be and the value given.
 
@@ -58,6 +66,7 @@ use)::
 
     python reference_step.py --check                  # replay test_vectors.npz: PASS n/n
     python reference_step.py --check --backend all    # every backend installed
+    python reference_step.py --check --log run.csv    # and write the steps as a run log
     python reference_step.py                          # what the bundle holds
 """
 
@@ -89,6 +98,131 @@ DECISION_FIELDS = ("behaviour", "led", "led_selection", "command", "continue_rec
 #: simulator's compiled code may round the last bit differently).
 INPUT_TOLERANCE = 1e-12
 _MASK32 = 0xFFFFFFFF
+
+# --- the run log (what a robot did, in the form ``cyber-rodent sysid`` reads) ------------------
+#: First characters of a run log's first line; the rest of that line is a JSON object with the
+#: schema ``version`` and the field (``field_size``, m; ``packs``, [[x, y], ...] m).
+LOG_MARK = "# cyber-rodent-log "
+#: Version of the log's columns; a reader refuses other versions.
+LOG_VERSION = 1
+#: The log's columns: name, unit, lowest and highest value, group. One row is one robot's
+#: control step. A group's columns come all together or not at all; ``base`` is required.
+#: An empty cell (NaN) is allowed only where its group's flag says the value is absent
+#: (``x``, ``y``, ``yaw`` where ``tracked`` is 0; a camera class's bearing, distance and area
+#: where its ``seen`` is 0).
+LOG_COLUMNS: tuple[tuple[str, str, float, float, str], ...] = (
+    ("step", "control steps", 0, 1e12, "base"),
+    ("t", "s", 0.0, 1e9, "base"),
+    ("robot", "index", 0, 199, "base"),
+    ("cmd_left", "m/s", -1.3, 1.3, "base"),
+    ("cmd_right", "m/s", -1.3, 1.3, "base"),
+    ("wheel_left", "m/s", -5.0, 5.0, "encoders"),
+    ("wheel_right", "m/s", -5.0, 5.0, "encoders"),
+    ("tracked", "flag", 0, 1, "tracker"),
+    ("x", "m", -50.0, 50.0, "tracker"),
+    ("y", "m", -50.0, 50.0, "tracker"),
+    ("yaw", "rad", -math.pi, math.pi, "tracker"),
+    *((f"ir{i}", "m", 0.0, 10.0, "ir") for i in range(8)),
+    ("led", "flag", 0, 1, "led"),
+    *(
+        (f"cam_{c}_{what}", unit, low, high, "camera")
+        for c in ("led", "face", "battery")
+        for what, unit, low, high in (
+            ("seen", "flag", 0, 1),
+            ("bearing", "rad", -math.pi, math.pi),
+            ("distance", "m", 0.0, 100.0),
+            ("area", "px", 0.0, 1e7),
+        )
+    ),
+    ("energy", "energy units", 0.0, 1e9, "energy"),
+    ("battery_v", "V", 0.0, 100.0, "battery"),
+    ("docked", "flag", 0, 1, "events"),
+    ("mated", "flag", 0, 1, "events"),
+)
+LOG_COLUMN_NAMES = tuple(c[0] for c in LOG_COLUMNS)
+
+
+class StepLog:
+    """Writes a run log (:data:`LOG_COLUMNS`) row by row; the file appears complete at
+    :meth:`close` (written as ``PATH.partial`` and renamed), never half-written.
+
+    Rows are kept as numbers and formatted in blocks of ``flush_rows``, so a step pays for a
+    list append, not for text formatting.
+
+    Args:
+        path: the log file (``.csv``).
+        groups: the column groups the robot records (``base`` always).
+        field_size: side of the field, m.
+        packs: the packs' (x, y), m.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        groups: tuple[str, ...] = ("base",),
+        field_size: float = 2.3,
+        packs: list[tuple[float, float]] | None = None,
+        flush_rows: int = 1000,
+    ) -> None:
+        known = {c[4] for c in LOG_COLUMNS}
+        unknown = [g for g in groups if g not in known]
+        if unknown:
+            raise ValueError(f"log groups must be among {', '.join(sorted(known))}, got {unknown}")
+        self.columns = [c[0] for c in LOG_COLUMNS if c[4] == "base" or c[4] in groups]
+        self.index = {name: i for i, name in enumerate(self.columns)}
+        self.path = Path(path)
+        self.partial = self.path.with_name(self.path.name + ".partial")
+        header = {"version": LOG_VERSION, "field_size": float(field_size),
+                  "packs": [[float(x), float(y)] for x, y in (packs or [])]}  # fmt: skip
+        self._file = open(self.partial, "w")  # noqa: SIM115 (closed by close())
+        self._file.write(LOG_MARK + json.dumps(header) + "\n" + ",".join(self.columns) + "\n")
+        self._rows: list[list[float]] = []
+        self.flush_rows = flush_rows
+
+    def write(self, **values: float) -> None:
+        """One row: every column of the log's groups by name (missing ones are empty)."""
+        row = [math.nan] * len(self.columns)
+        index = self.index
+        for name, value in values.items():
+            row[index[name]] = value
+        self._rows.append(row)
+        if len(self._rows) >= self.flush_rows:
+            self._flush()
+
+    def write_decision(
+        self, step: int, t: float, robot: int, decision: Decision, ranges: np.ndarray,
+        bearing: np.ndarray, distance: np.ndarray, visible: np.ndarray, **measured: float,
+    ) -> None:  # fmt: skip
+        """A row from one :meth:`ReferenceController.step`: its inputs, its wheel command and
+        LED, and what the robot measured (``measured``: encoders, tracker, energy...)."""
+        values: dict[str, float] = {"step": step, "t": t, "robot": robot,
+                                    "cmd_left": decision.wheels[0],
+                                    "cmd_right": decision.wheels[1], **measured}  # fmt: skip
+        if "ir0" in self.index:
+            values.update({f"ir{i}": float(r) for i, r in enumerate(ranges)})
+        if "led" in self.index:
+            values["led"] = float(decision.led)
+        if "cam_led_seen" in self.index:
+            for c, name in enumerate(("led", "face", "battery")):
+                seen = bool(visible[c])
+                values[f"cam_{name}_seen"] = float(seen)
+                if seen:
+                    values[f"cam_{name}_bearing"] = float(bearing[c])
+                    values[f"cam_{name}_distance"] = float(distance[c])
+        self.write(**values)
+
+    def _flush(self) -> None:
+        lines = (",".join("" if v != v else repr(float(v)) if isinstance(v, float) else str(v)
+                          for v in row) for row in self._rows)  # fmt: skip
+        self._file.write("\n".join(lines) + ("\n" if self._rows else ""))
+        self._rows.clear()
+
+    def close(self) -> Path:
+        """Write what is left and give the file its name; returns the path."""
+        self._flush()
+        self._file.close()
+        self.partial.replace(self.path)
+        return self.path
 
 
 @dataclass(frozen=True)
@@ -390,8 +524,10 @@ class ReferenceController:
     def use_agent(self, agent: int) -> None:
         """Run the agent in row ``agent`` of the bundle's weights (time sharing)."""
         n = len(self.all_weights)
-        if not isinstance(agent, int | np.integer) or isinstance(agent, bool) or not (
-            0 <= agent < n
+        if (
+            not isinstance(agent, int | np.integer)
+            or isinstance(agent, bool)
+            or not (0 <= agent < n)
         ):
             raise ValueError(f"agent must be an integer in [0, {n - 1}], got {agent!r}")
         self.agent = int(agent)
@@ -533,13 +669,18 @@ class CheckResult:
         return f"FAIL (backend {self.backend}) {self.mismatch}"
 
 
-def check_vectors(bundle_dir: str | Path, backend: str = "auto") -> CheckResult:
+def check_vectors(
+    bundle_dir: str | Path, backend: str = "auto", log: StepLog | None = None
+) -> CheckResult:
     """Replay the bundle's test vectors (``bundle.json`` ``test_vectors``) through the step.
 
     Each row holds what one simulated robot observed in one control step and what the
     simulator decided; the row passes when the step decides the same behaviour, LED, selection
     LED, wheel command, wheel speeds and recharge decision and recomputes the controller inputs
     to within :data:`INPUT_TOLERANCE`. Stops at the first row that does not.
+
+    With ``log``, every step is also written to it (:class:`StepLog`; time is the step
+    number times the bundle's control step).
 
     Raises:
         ValueError: the bundle has no test vectors, or cannot run ``backend``.
@@ -553,6 +694,7 @@ def check_vectors(bundle_dir: str | Path, backend: str = "auto") -> CheckResult:
     with np.load(root / described["file"]) as data:
         v = {k: data[k] for k in data.files}
     total = len(v["agent"])
+    control_dt = float(robot.spec.get("survival", {}).get("control_dt", 0.2))
     for i in range(total):
         robot.use_agent(int(v["agent"][i]))
         where = f"row {i} (step {int(v['step'][i])}, robot {int(v['robot'][i])}, agent " \
@@ -565,6 +707,13 @@ def check_vectors(bundle_dir: str | Path, backend: str = "auto") -> CheckResult:
             )  # fmt: skip
         except ValueError as err:
             return CheckResult(name, i, total, f"{where}: the step refused its input: {err}")
+        if log is not None:
+            step = int(v["step"][i])
+            log.write_decision(
+                step, step * control_dt, int(v["robot"][i]), d, v["ranges"][i], v["bearing"][i],
+                v["distance"][i], v["visible"][i], energy=float(v["energy"][i]),
+                docked=float(bool(v["docked"][i])),
+            )  # fmt: skip
         for field in DECISION_FIELDS:
             expected, got = v[field][i].item(), getattr(d, field)
             if expected != got:
@@ -601,6 +750,9 @@ def main(argv: list[str] | None = None) -> int:
     )  # fmt: skip
     parser.add_argument("--bundle", default=str(here), metavar="DIR",
                         help="the bundle directory (default: this file's)")  # fmt: skip
+    parser.add_argument("--log", default=None, metavar="FILE",
+                        help="with --check: write every replayed step to FILE, a run log "
+                        "(CSV; the format cyber-rodent sysid reads)")  # fmt: skip
     args = parser.parse_args(argv)
     root = Path(args.bundle)
     try:
@@ -617,7 +769,15 @@ def main(argv: list[str] | None = None) -> int:
         backends = available if args.backend == "all" else [args.backend]
         if not backends:
             raise ValueError("no backend can run this bundle here")
-        results = [check_vectors(root, b) for b in backends]
+        if args.log is not None and not Path(args.log).parent.is_dir():
+            raise ValueError(f"--log {args.log}: no such directory")
+        log = None
+        if args.log is not None:
+            log = StepLog(args.log, ("led", "camera", "ir", "energy", "events"))
+        results = [check_vectors(root, b, log if k == 0 else None)
+                   for k, b in enumerate(backends)]  # fmt: skip
+        if log is not None:
+            print(f"wrote {log.close()}")
     except ValueError as err:
         print(f"reference_step.py: error: {err}", file=sys.stderr)
         return 2

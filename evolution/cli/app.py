@@ -13,11 +13,13 @@ from types import ModuleType
 from evolution.cli import (
     config,
     evolve,
+    gap,
     plot,
     render,
     resume,
     snapshot,
     sweep,
+    sysid,
     train_behaviours,
     transfer,
 )
@@ -52,6 +54,8 @@ COMMANDS: dict[str, Command] = {
     "plot": Command(plot.HELP, plot),
     "render": Command(render.HELP, render),
     "transfer": Command(transfer.HELP, transfer),
+    "sysid": Command(sysid.HELP, sysid),
+    "gap": Command(gap.HELP, gap),
     "view": Command(
         "watch a run, a checkpoint or a task live in MuJoCo's interactive viewer",
         "evolution.lab.viewer",

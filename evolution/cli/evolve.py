@@ -11,10 +11,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from evolution.cli import options
-from evolution.cli.parsing import int_arg
+from evolution.cli.parsing import CliError, int_arg
 
 if TYPE_CHECKING:  # pandas is slow to import; ``--help`` must stay fast
     import pandas as pd
+
+    from evolution.runner.config import RunConfig
 
 HELP = "run embodied evolution (EE) or the centralised GA (CE) in a run directory"
 
@@ -54,6 +56,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="newest checkpoints to keep (default 3; 0 keeps every generation, which "
         "'transfer --generation' needs)",
     )
+    parser.add_argument(
+        "--profile",
+        default=None,
+        help="evolve in a hardware-like world: hardware, or a profile file fitted by "
+        "'cyber-rodent sysid' (its robots, packs, noise and drives); default: the plain "
+        "simulation",
+    )
     options.add_max_steps(parser)
     options.add_tensorboard(parser, "in DIR/<name of --out>")
     options.add_plugin_option(parser, "run.json records each one's name and content hash")
@@ -65,10 +74,12 @@ def run(args: argparse.Namespace) -> int:
     from evolution.lab.api import RunOutput, RunSpec
 
     plugins = options.load_plugins(args)  # before the settings, which may name what they add
+    base = _profiled_config(args)
     spec = RunSpec(
         args.method,
         args.generations,
         args.seed,
+        config=base,
         overrides=options.read_settings(args),
         policies=args.policies,
         max_steps=args.max_steps,
@@ -96,6 +107,20 @@ def run(args: argparse.Namespace) -> int:
             f"{experiment.PAPER_COMMAND}"
         )
     return 0
+
+
+def _profiled_config(args: argparse.Namespace) -> RunConfig | None:
+    """The run's base config in the world of ``--profile`` (None without one)."""
+    from cyber_rodent.profiles import profile_from_arg
+    from evolution.lab.api import make_config
+    from evolution.lab.transfer import hardware_run_config
+
+    if args.profile is None:
+        return None
+    if args.resume:
+        raise CliError("--profile starts a run; --resume continues one with its own profile")
+    profile = profile_from_arg(args.profile)
+    return hardware_run_config(make_config(args.method), profile)
 
 
 def interrupted(run_dir: str | os.PathLike[str]) -> int:

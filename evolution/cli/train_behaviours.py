@@ -39,14 +39,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--profile",
         default="sim",
-        choices=("sim", "hardware"),
-        help="episode world: the plain simulation or the hardware-like profile",
+        help="episode world: sim (the plain simulation), hardware (the hardware-like "
+        "profile) or a profile file fitted by 'cyber-rodent sysid'",
     )
     parser.add_argument(
         "--randomise",
         action="store_true",
         help="domain randomisation: each episode draws its sensor noise and actuator "
-        "differences from the hardware profile's ranges",
+        "differences from the hardware profile's ranges (a fitted profile: around the "
+        "fitted values, within their uncertainty)",
     )
     parser.add_argument(
         "--robot",
@@ -73,9 +74,9 @@ def run(args: argparse.Namespace) -> int:
     from behaviours.definitions import spec
     from behaviours.inputs import BEHAVIOUR_NAMES
     from behaviours.training import check_episodes, has_goal, train
-    from cyber_rodent.profiles import HardwareProfile, profile_by_name
+    from cyber_rodent.profiles import HardwareProfile, profile_from_arg
 
-    profile = profile_by_name(args.profile)
+    profile = profile_from_arg(args.profile)
     if args.randomise and profile is None:
         profile = HardwareProfile()  # the ranges the episodes are drawn from
     from cyber_rodent.robot import robot_names

@@ -38,7 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--generations", type=int_arg("--generations"), default=10, help="generations after"
     )
     parser.add_argument(
-        "--profile", default="hardware", choices=("hardware", "sim"), help="world profile"
+        "--profile",
+        default="hardware",
+        help="world profile: hardware, sim or a profile file fitted by 'cyber-rodent sysid'",
     )
     parser.add_argument("--seed", type=int_arg("--seed"), default=0, help="the new run's seed")
     parser.add_argument("--out", required=True, help="new run directory")
@@ -46,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cyber_rodent.profiles import profile_by_name
+    from cyber_rodent.profiles import profile_from_arg
     from cyber_rodent.validation import check_integer
     from cyber_rodent.world import MAX_ROBOTS
     from evolution.config import MAX_GENERATIONS, MAX_POPULATION
@@ -73,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         robots=args.robots,
         agents_per_robot=args.agents_per_robot,
         generations=args.generations,
-        profile=profile_by_name(args.profile),
+        profile=profile_from_arg(args.profile),
         seed=args.seed,
     )
     result = transfer(spec, RunOutput(args.out, progress=not args.no_progress))

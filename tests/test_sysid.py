@@ -1,0 +1,157 @@
+"""System identification: the run log's checks, the fitted profile, the noise fits."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cyber_rodent.profiles import (
+    FittedActuators,
+    FittedProfile,
+    HardwareProfile,
+    RangeNoise,
+    load_profile,
+    profile_from_arg,
+    save_profile,
+)
+from cyber_rodent.robot_step import LOG_MARK
+from cyber_rodent.sysid.fit import fit_camera, fit_ir, ir_negative_log_likelihood
+from cyber_rodent.sysid.log import read_log, write_log
+
+
+def _table(n: int = 5) -> pd.DataFrame:
+    return pd.DataFrame(
+        {
+            "step": np.arange(n),
+            "t": 0.2 * np.arange(n),
+            "robot": np.zeros(n, dtype=int),
+            "cmd_left": np.full(n, 0.2),
+            "cmd_right": np.full(n, 0.2),
+            "tracked": np.ones(n),
+            "x": np.zeros(n),
+            "y": np.zeros(n),
+            "yaw": np.zeros(n),
+        }
+    )
+
+
+def _write(tmp_path: Path, table: pd.DataFrame) -> Path:
+    return write_log(tmp_path / "log.csv", table, 2.3, np.zeros((0, 2)))
+
+
+def test_log_round_trip(tmp_path: Path) -> None:
+    log = read_log(_write(tmp_path, _table()))
+    assert log.groups == ("base", "tracker")
+    assert log.robots == (0,)
+    assert len(log.of_robot(0)) == 5
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda t: t.drop(columns="cmd_left"), "missing column cmd_left"),
+        (lambda t: t.drop(columns="yaw"), "missing column yaw (group tracker"),
+        (lambda t: t.assign(t=[0.0, 0.2, 0.1, 0.6, 0.8]), "column t, row 3: must increase"),
+        (
+            lambda t: t.assign(cmd_right=[0.2, math.nan, 0.2, 0.2, 0.2]),
+            "column cmd_right, row 2: NaN",
+        ),
+        (
+            lambda t: t.assign(cmd_left=[0.2, 0.2, 0.2, 0.2, 9.0]),
+            "column cmd_left, row 5: out of range",
+        ),
+        (lambda t: t.assign(x=[0.0, 0.0, math.nan, 0.0, 0.0]), "column x, row 3: NaN"),
+    ],
+)
+def test_bad_log_names_column_and_row(tmp_path: Path, change, message: str) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(ValueError) as err:
+        read_log(_write(tmp_path, change(_table())))
+    assert message in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_dropped_tracker_frame_may_be_empty(tmp_path: Path) -> None:
+    table = _table().assign(tracked=[1, 1, 0, 1, 1], x=[0, 0, math.nan, 0, 0])
+    assert read_log(_write(tmp_path, table)).table["tracked"].sum() == 4
+
+
+def test_not_a_log(tmp_path: Path) -> None:
+    path = tmp_path / "x.csv"
+    path.write_text("a,b\n1,2\n")
+    with pytest.raises(ValueError, match="not a run log"):
+        read_log(path)
+    path.write_text(LOG_MARK + '{"version": 2}\nstep\n1\n')
+    with pytest.raises(ValueError, match="version must be 1"):
+        read_log(path)
+
+
+def test_fitted_actuators_sample_and_draw() -> None:
+    a = FittedActuators(
+        wheel_gain=((0.9, 1.1), (0.7, 0.8)), wheel_gain_sd=((0.0, 0.0), (0.0, 0.0)),
+        friction_scale=(1.0, 1.2), friction_scale_sd=(0.0, 0.0),
+        motor_lag=(0.06, 0.1), motor_lag_sd=(0.0, 0.0),
+    )  # fmt: skip
+    gain, friction, lag = a.sample(2, np.random.default_rng(0))
+    assert sorted(lag.tolist()) == [0.06, 0.1]  # each fitted robot once
+    assert a.drawn(np.random.default_rng(0)).wheel_gain == a.wheel_gain  # zero sd: unchanged
+    with pytest.raises(ValueError, match="one entry per fitted robot"):
+        FittedActuators(wheel_gain=((1.0, 1.0),), motor_lag=(0.05, 0.06))
+    with pytest.raises(ValueError, match=r"actuators.wheel_gain\[0\]\[1\]"):
+        FittedActuators(wheel_gain=((1.0, 9.0),))
+
+
+def test_fitted_profile_file_round_trip_and_randomisation(tmp_path: Path) -> None:
+    profile = FittedProfile(
+        range_noise=RangeNoise(std=0.01, dropout=0.03),
+        uncertainty=(("range_noise.std", 0.002),),
+    )
+    path = save_profile(tmp_path / "p.json", profile, {"logs": []})
+    assert load_profile(path) == profile
+    assert profile_from_arg(str(path)) == profile
+    assert profile_from_arg("sim") is None and profile_from_arg("hardware") == HardwareProfile()
+    with pytest.raises(ValueError, match="--profile must be one of sim, hardware or a profile"):
+        profile_from_arg(str(tmp_path / "missing.json"))
+    draws = [profile.randomised(np.random.default_rng(s)).range_noise.std for s in range(200)]
+    assert abs(np.mean(draws) - 0.01) < 0.001 and 0.0015 < np.std(draws) < 0.0025
+    assert profile.randomised(np.random.default_rng(1)) == profile.randomised(
+        np.random.default_rng(1)
+    )
+
+
+def test_hardware_profile_randomisation_unchanged() -> None:
+    """The hand-set profile's domain randomisation draws as it always did."""
+    from cyber_rodent.profiles import randomised
+
+    r = randomised(HardwareProfile(), np.random.default_rng(3))
+    u = np.random.default_rng(3).random(8)
+    assert r.range_noise.std == pytest.approx(0.02 * u[0])
+    assert r.actuators.weak_gain == pytest.approx(1 - 0.3 * u[7])
+
+
+def test_ir_likelihood_hand_computed() -> None:
+    # one in-range reading 0.1 m off at std 0.1: -log((1 - p) phi(1) / std)
+    nll = ir_negative_log_likelihood(0.1, 0.2, np.array([0.6]), np.array([0.5]), np.array([1.0]))
+    assert nll == pytest.approx(-math.log(0.8 * math.exp(-0.5) / math.sqrt(2 * math.pi) / 0.1))
+    # a saturated reading: p + (1 - p) P(noise > top - sim), here P = 0.5
+    nll = ir_negative_log_likelihood(0.1, 0.2, np.array([1.0]), np.array([1.0]), np.array([1.0]))
+    assert nll == pytest.approx(-math.log(0.2 + 0.8 * 0.5))
+
+
+def test_ir_and_camera_fits_recover_known_noise() -> None:
+    rng = np.random.default_rng(7)
+    sim = rng.uniform(0.05, 0.9, size=(4000, 8))
+    top = np.ones_like(sim)
+    obs = np.clip(sim + rng.normal(0, 0.03, sim.shape), 0, 1)
+    obs[rng.random(sim.shape) < 0.05] = 1.0
+    std, dropout = fit_ir(obs, sim, top)
+    assert std == pytest.approx(0.03, rel=0.03) and dropout == pytest.approx(0.05, abs=0.005)
+    seen = rng.random(5000) >= 0.1
+    bearing = np.where(seen, rng.normal(0, math.radians(4), 5000), np.nan)
+    ratio = np.where(seen, rng.normal(0, 0.1, 5000), np.nan)
+    b, d, miss = fit_camera(seen, bearing, ratio)
+    assert b == pytest.approx(4, rel=0.05) and d == pytest.approx(0.1, rel=0.05)
+    assert miss == pytest.approx(0.1, abs=0.01)
