@@ -41,13 +41,14 @@ class DriveWriter:
         self.gain0 = m.actuator_gainprm[self.motors, 0].copy()
         self.friction0 = m.geom_friction[self.geoms, 0].copy()
         n = world.config.n_robots
+        parts = world.robot.parts
         self.wheel_dof = np.array(
             [
                 [
                     m.jnt_dofadr[
                         mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, C.robot_prefix(i) + j)
                     ]
-                    for j in (C.LEFT_WHEEL_JOINT, C.RIGHT_WHEEL_JOINT)
+                    for j in (parts.left_wheel_joint, parts.right_wheel_joint)
                 ]
                 for i in range(n)
             ]
@@ -139,7 +140,7 @@ class Replayer:
             wheels = cmd[0] * np.asarray(drive[:2])
         radius = w.wheel_radius
         v = wheels.mean()
-        omega = (wheels[1] - wheels[0]) / (2 * C.HALF_WHEEL_BASE)
+        omega = (wheels[1] - wheels[0]) / (2 * w.robot.half_wheel_base)
         qv = int(w.root_qvel_adr[0])
         d.qvel[qv : qv + 2] = (v * math.cos(yaw), v * math.sin(yaw))
         d.qvel[qv + 5] = omega
