@@ -7,6 +7,7 @@ a profile to each log; the gap report compares the hand-set profile (the hardwar
 the model's drive) with the fitted one on the held-out segments.
 
 Writes ``results/sysid/recovery.csv`` (true value, fit, bootstrap standard error, |error| / se),
+``results/sysid/fitted_<seed>.json`` (each fitted profile, a file ``--profile`` accepts),
 ``results/sysid/gap.csv``, ``results/sysid/run.json`` (commit, command, settings) and
 ``docs/images/sysid_gap.png``::
 
@@ -27,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from cyber_rodent.atomic import write_json, write_text
-from cyber_rodent.profiles import HardwareProfile
+from cyber_rodent.profiles import HardwareProfile, save_profile
 from cyber_rodent.sysid.fit import SysidConfig, sysid
 from cyber_rodent.sysid.gap import gap_figure, gap_samples, gap_table
 from cyber_rodent.sysid.log import read_log, write_log
@@ -57,6 +58,11 @@ def main() -> int:
         with tempfile.TemporaryDirectory() as tmp:
             log = read_log(write_log(Path(tmp) / "log.csv", table, field, packs))
         result = sysid([log], config)
+        save_profile(
+            out / f"fitted_{seed}.json",
+            result.profile,
+            {"true_robot_seed": seed, "log_seed": seed + 50_000, "seconds": args.seconds},
+        )  # the fitted profile the pretraining study (benchmarks/sysid_pretraining.py) reads
         hidden = truth.parameters()
         for name, (value, se) in result.parameters.items():
             recovery.append({"true_robot": seed, "parameter": name, "true": hidden[name],
