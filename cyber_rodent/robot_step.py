@@ -146,14 +146,16 @@ class StepLog:
     """Writes a run log (:data:`LOG_COLUMNS`) row by row; the file appears complete at
     :meth:`close` (written as ``PATH.partial`` and renamed), never half-written.
 
-    Rows are kept as numbers and formatted in blocks of ``flush_rows``, so a step pays for a
-    list append, not for text formatting.
+    A row is stored as numbers in a preallocated block of ``flush_rows`` rows (a full block is
+    kept and a new one started) and the text is written at :meth:`close`, so a control step
+    pays for a few array writes, not for text formatting.
 
     Args:
         path: the log file (``.csv``).
         groups: the column groups the robot records (``base`` always).
         field_size: side of the field, m.
         packs: the packs' (x, y), m.
+        flush_rows: rows per stored block.
     """
 
     def __init__(
@@ -168,26 +170,45 @@ class StepLog:
         unknown = [g for g in groups if g not in known]
         if unknown:
             raise ValueError(f"log groups must be among {', '.join(sorted(known))}, got {unknown}")
-        self.columns = [c[0] for c in LOG_COLUMNS if c[4] == "base" or c[4] in groups]
+        chosen = [c for c in LOG_COLUMNS if c[4] == "base" or c[4] in groups]
+        self.columns = [c[0] for c in chosen]
         self.index = {name: i for i, name in enumerate(self.columns)}
+        #: columns written as integers: the step, the robot and the flags
+        self._whole = [c[1] in ("control steps", "index", "flag") for c in chosen]
         self.path = Path(path)
         self.partial = self.path.with_name(self.path.name + ".partial")
         header = {"version": LOG_VERSION, "field_size": float(field_size),
                   "packs": [[float(x), float(y)] for x, y in (packs or [])]}  # fmt: skip
         self._file = open(self.partial, "w")  # noqa: SIM115 (closed by close())
         self._file.write(LOG_MARK + json.dumps(header) + "\n" + ",".join(self.columns) + "\n")
-        self._rows: list[list[float]] = []
-        self.flush_rows = flush_rows
+        self.flush_rows = int(flush_rows)
+        self._blocks: list[np.ndarray] = []
+        self._block = np.full((self.flush_rows, len(self.columns)), np.nan)
+        self._rows = 0
+        index = self.index
+        self._ir = [index[f"ir{i}"] for i in range(8)] if "ir0" in index else None
+        self._camera = (
+            [[index[f"cam_{c}_{w}"] for w in ("seen", "bearing", "distance")]
+             for c in ("led", "face", "battery")]
+            if "cam_led_seen" in index else None
+        )  # fmt: skip
+
+    def _row(self) -> np.ndarray:
+        """The next row of the current block (all NaN: a missing value is empty)."""
+        if self._rows == self.flush_rows:
+            self._blocks.append(self._block)
+            self._block = np.full_like(self._block, np.nan)
+            self._rows = 0
+        row: np.ndarray = self._block[self._rows]
+        self._rows += 1
+        return row
 
     def write(self, **values: float) -> None:
         """One row: every column of the log's groups by name (missing ones are empty)."""
-        row = [math.nan] * len(self.columns)
+        row = self._row()
         index = self.index
         for name, value in values.items():
             row[index[name]] = value
-        self._rows.append(row)
-        if len(self._rows) >= self.flush_rows:
-            self._flush()
 
     def write_decision(
         self, step: int, t: float, robot: int, decision: Decision, ranges: np.ndarray,
@@ -195,31 +216,39 @@ class StepLog:
     ) -> None:  # fmt: skip
         """A row from one :meth:`ReferenceController.step`: its inputs, its wheel command and
         LED, and what the robot measured (``measured``: encoders, tracker, energy...)."""
-        values: dict[str, float] = {"step": step, "t": t, "robot": robot,
-                                    "cmd_left": decision.wheels[0],
-                                    "cmd_right": decision.wheels[1], **measured}  # fmt: skip
-        if "ir0" in self.index:
-            values.update({f"ir{i}": float(r) for i, r in enumerate(ranges)})
-        if "led" in self.index:
-            values["led"] = float(decision.led)
-        if "cam_led_seen" in self.index:
-            for c, name in enumerate(("led", "face", "battery")):
-                seen = bool(visible[c])
-                values[f"cam_{name}_seen"] = float(seen)
-                if seen:
-                    values[f"cam_{name}_bearing"] = float(bearing[c])
-                    values[f"cam_{name}_distance"] = float(distance[c])
-        self.write(**values)
-
-    def _flush(self) -> None:
-        lines = (",".join("" if v != v else repr(float(v)) if isinstance(v, float) else str(v)
-                          for v in row) for row in self._rows)  # fmt: skip
-        self._file.write("\n".join(lines) + ("\n" if self._rows else ""))
-        self._rows.clear()
+        row = self._row()
+        index = self.index
+        row[0], row[1], row[2] = step, t, robot  # the base columns come first
+        row[3], row[4] = decision.wheels
+        for name, value in measured.items():
+            row[index[name]] = value
+        if self._ir is not None:
+            row[self._ir] = ranges
+        if "led" in index:
+            row[index["led"]] = decision.led
+        if self._camera is not None:
+            for c, (seen, at, far) in enumerate(self._camera):
+                row[seen] = bool(visible[c])
+                if visible[c]:
+                    row[at], row[far] = bearing[c], distance[c]
 
     def close(self) -> Path:
-        """Write what is left and give the file its name; returns the path."""
-        self._flush()
+        """Write the rows and give the file its name; returns the path."""
+        whole = self._whole
+        blocks = [*self._blocks, self._block[: self._rows]]
+        for block in blocks:
+            lines = (
+                ",".join(
+                    "" if v != v else str(int(v)) if whole[j] else repr(float(v))
+                    for j, v in enumerate(row.tolist())
+                )
+                for row in block
+            )
+            text = "\n".join(lines)
+            if text:
+                self._file.write(text + "\n")
+        self._blocks.clear()
+        self._rows = 0
         self._file.close()
         self.partial.replace(self.path)
         return self.path

@@ -630,3 +630,25 @@ def test_bundle_without_programs_runs_on_numpy(tmp_path) -> None:
     refused = _run_reference(bundle, "--check", "--backend", "numpy")
     assert refused.returncode == 2 and "behaviours.npz has no q array" in refused.stderr
     assert "holds no `.pt2` programs" in (bundle / README_FILE).read_text()
+
+
+def test_the_reference_step_logs_a_run_the_sysid_reader_accepts(odd_bundle, tmp_path) -> None:
+    """``reference_step.py --check --log FILE`` (numpy alone) writes the run log format: one row
+    per replayed step, its commands and ranges as the vectors hold them."""
+    from cyber_rodent.sysid.log import read_log
+
+    path = tmp_path / "run.csv"
+    done = _run_reference(odd_bundle, "--check", "--backend", "numpy", "--log", str(path),
+                          block_torch=True)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert not path.with_name("run.csv.partial").exists()
+    log = read_log(path)
+    with np.load(odd_bundle / "test_vectors.npz") as vectors:
+        rows = len(vectors["agent"])
+        first = log.table.sort_values(["step", "robot"]).iloc[0]
+        ranges = vectors["ranges"][np.lexsort((vectors["robot"], vectors["step"]))[0]]
+    assert len(log.table) == rows
+    np.testing.assert_allclose([first[f"ir{i}"] for i in range(8)], ranges)
+    assert set(log.table["led"].unique()) <= {False, True}
+    assert log.table["mated"].isna().all()  # the step cannot know: empty, not True
+    assert log.table["docked"].dtype == bool

@@ -37,6 +37,15 @@ ABSENT_WHERE = {
         for what in ("bearing", "distance", "area")
     },
 }
+#: Columns a robot may leave empty in any row: what the fit does not use and not every robot
+#: measures (a camera that reports no blob area; a robot that does not know it mated).
+OPTIONAL = {
+    *(f"cam_{c}_area" for c in CAMERA_CLASSES),
+    "energy",
+    "battery_v",
+    "docked",
+    "mated",
+}
 FLAGS = {name for name, unit, *_ in LOG_COLUMNS if unit == "flag"}
 INTEGERS = {"step", "robot"}
 
@@ -125,7 +134,7 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
     for j, column in enumerate(table.columns):
         col = values[:, j]
         low, high, unit = BOUNDS[column]
-        bad = ~np.isfinite(col)
+        bad = np.isinf(col) if column in OPTIONAL else ~np.isfinite(col)
         flag = ABSENT_WHERE.get(column)
         if flag is not None:
             bad &= table[flag].to_numpy(dtype=float) != 0  # absent: may be empty
@@ -144,8 +153,9 @@ def read_log(path: str | os.PathLike[str]) -> RunLog:
     for column in table.columns:
         if column in INTEGERS:
             table[column] = table[column].astype(np.int64)
-        elif column in FLAGS:
-            table[column] = table[column].astype(bool)
+        elif column in FLAGS:  # an optional flag left empty is missing (<NA>), not True
+            has_gaps = bool(table[column].isna().any())
+            table[column] = table[column].astype("boolean" if has_gaps else bool)
     robot = table["robot"].to_numpy()
     for column in ("step", "t"):
         v = table[column].to_numpy(dtype=float)
