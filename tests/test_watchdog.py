@@ -55,9 +55,12 @@ def test_a_robot_driving_into_a_wall_is_stuck_after_stuck_steps(backend: str) ->
     starts = [(k, e.stuck_started) for k, e in found if e.stuck_started]
     assert starts == [(26, [0])]
     assert dog.state.stuck_steps.tolist() == [15, 0]
-    wheels[0] = (-0.3, -0.3)  # backs off: accelerating, 5 cm away in its second step
+    # It backs off: accelerating through the 50 ms motor lag it still covers about
+    # 0.3 m/s x (0.2 s - 0.05 s) = 4.5 cm in its first step, more than stuck_progress (0.2) of
+    # the 6 cm it commands: free at once.
+    wheels[0] = (-0.3, -0.3)
     found = run(sw, dog, wheels, 3)
-    assert [(k, e.stuck_ended) for k, e in found] == [(2, [(0, 16)])]
+    assert [(k, e.stuck_ended) for k, e in found] == [(1, [(0, 15)])]
     assert not any(e.tip_started for _, e in found)
 
 
@@ -79,7 +82,8 @@ def test_a_robot_held_while_it_turns_on_the_spot_is_stuck(backend: str) -> None:
     """Fig. 6's EE seed 19 (published model): two robots each turned in place against the
     other for 700,000 steps. Robot 1, pinned, commands a turn on the spot at 0.2 m/s (no
     forward command): 25 steps without turning 0.5 rad, and it is stuck at step 26; released,
-    it turns (0.2 m/s / 0.08 m = 2.5 rad/s, 0.5 rad within a step) and is free again. A free
+    it turns (0.2 m/s / 0.08 m = 2.5 rad/s: 0.5 rad commanded per step, of which it achieves
+    more than stuck_progress, a fifth, in its first step) and is free again at once. A free
     robot turning at the slowest command that counts (0.05 m/s: 0.125 rad per step) is not."""
     sw, dog, wheels = scene(backend)
     pin(sw, 1)
@@ -88,9 +92,31 @@ def test_a_robot_held_while_it_turns_on_the_spot_is_stuck(backend: str) -> None:
     assert [(k, e.stuck_started) for k, e in found if e.stuck_started] == [(26, [1])]
     sw.world.data.eq_active[sw.docking.hold_eq[1]] = 0
     found = run(sw, dog, wheels, 3)
-    assert [e.stuck_ended for _, e in found if e.stuck_ended] == [[(1, 6)]]
+    assert [(k, e.stuck_ended) for k, e in found if e.stuck_ended] == [(1, [(1, 5)])]
     wheels[1] = (-0.05, 0.05)
     assert all(not e.stuck_started for _, e in run(sw, dog, wheels, 60))
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_robot_that_dithers_on_the_spot_is_not_stuck(backend: str) -> None:
+    """A free robot that spins left and right in turn (a greedy policy at a bearing near zero)
+    turns back to where it began every other step, so it never gets 0.5 rad from it; but each
+    step it achieves about a third of the 0.5 rad it commands (the motors reverse through their
+    50 ms lag), more than ``stuck_progress`` (0.2), so it is moving. The same robot pinned
+    achieves nothing, and is stuck after its 25th held step (its count began at 0 in the step
+    before, its last free one)."""
+    sw, dog, wheels = scene(backend)
+    found = []
+    for k in range(60):
+        wheels[1] = (-0.2, 0.2) if k % 2 == 0 else (0.2, -0.2)
+        found += [e for _, e in run(sw, dog, wheels, 1)]
+    assert not any(e.stuck_started == [1] for e in found)
+    pin(sw, 1)
+    found = []
+    for k in range(30):
+        wheels[1] = (-0.2, 0.2) if k % 2 == 0 else (0.2, -0.2)
+        found += [(k + 1, e) for _, e in run(sw, dog, wheels, 1)]
+    assert [(k, e.stuck_started) for k, e in found if 1 in e.stuck_started] == [(25, [1])]
 
 
 @pytest.mark.parametrize("backend", ["numba", "numpy"])
@@ -197,11 +223,11 @@ def test_the_compiled_rule_matches_its_reference() -> None:
 
     rng = np.random.default_rng(8)
     n, bodies = 7, 9
-    rules = WatchRules(0.5, 5, 0.05**2, math.cos(0.5), 0.05, 4)
+    rules = WatchRules(0.5, 5, 0.05**2, math.cos(0.5), 0.05, 4, 0.2, 0.2, 0.08)
     states = [
         WatchState(np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n, np.int64),
-                   np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2), np.int64),
-                   np.zeros(n, np.int64))
+                   np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2)),
+                   np.zeros((n, 2), np.int64), np.zeros(n, np.int64))
         for _ in range(2)
     ]  # fmt: skip
     xmat, xpos = np.zeros((bodies, 9)), np.zeros((bodies, 3))

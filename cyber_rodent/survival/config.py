@@ -85,6 +85,12 @@ class SurvivalConfig:
             stuck (5 s at the slowest forward command would cover over 0.3 m).
         stuck_turn: rad, the turn that keeps a robot that commands motion from being stuck
             (5 s at the slowest turning command would turn it 3.1 rad).
+        stuck_progress: a control step in which a robot achieves this share of the travel or
+            the turn it commanded (speed x control step; turn rate (right - left) / 2 / half
+            wheel base) counts as moving and restarts the count: a robot that dithers,
+            spinning left and right on the spot, is not held. 0.2: dithering robots achieved
+            a third of their commanded turn per step, held robots a few per cent
+            (docs/design.md §9.35).
         rescue: an experimenter rescues robots: after ``rescue_after_steps`` control steps
             tipped or stuck, a robot is set upright at rest at the nearest free spot, its energy
             and agent unchanged. Off: the paper's robots were never helped.
@@ -141,6 +147,7 @@ class SurvivalConfig:
     stuck_turn: float = number(
         0.5, 0.0, math.pi, low_open=True, unit="rad", source="docs/design.md §9.35"
     )
+    stuck_progress: float = number(0.2, 0.0, 1.0, unit="share", source="docs/design.md §9.35")
     rescue: bool = boolean(False, source="docs/design.md §9.35")
     rescue_after_steps: int = integer(
         25, 1, MAX_STEP_COUNT, unit="control steps", source="docs/design.md §9.35"

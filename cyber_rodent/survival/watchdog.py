@@ -95,9 +95,10 @@ class Watchdog:
         docked: (n,) bool, the survival world's docked flags.
         reflex_steps: (n,) int, the survival world's reflex steps still to run.
         active: (n,) bool, robots that run an agent (None: all, always).
-        tip_uprightness, stuck_steps, stuck_distance, stuck_turn, rescue, rescue_after_steps:
-            the rules
-            (``survival.*``, :class:`~cyber_rodent.survival.SurvivalConfig`).
+        tip_uprightness, stuck_steps, stuck_distance, stuck_turn, stuck_progress, rescue,
+            rescue_after_steps: the rules (``survival.*``,
+            :class:`~cyber_rodent.survival.SurvivalConfig`).
+        control_dt: s, one control step (the commanded travel of a step is speed x this).
         backend: ``"numba"`` or ``"numpy"``.
 
     Attributes:
@@ -116,6 +117,8 @@ class Watchdog:
         stuck_steps: int = 25,
         stuck_distance: float = 0.05,
         stuck_turn: float = 0.5,
+        stuck_progress: float = 0.2,
+        control_dt: float = 0.2,
         rescue: bool = False,
         rescue_after_steps: int = 25,
         backend: Backend = DEFAULT_BACKEND,
@@ -125,13 +128,17 @@ class Watchdog:
         self.rules = WatchRules(
             float(tip_uprightness), int(stuck_steps), float(stuck_distance) ** 2,
             math.cos(float(stuck_turn)), MOVING_COMMAND,
-            int(rescue_after_steps) if rescue else 0,
+            int(rescue_after_steps) if rescue else 0, float(stuck_progress), float(control_dt),
+            float(world.robot.half_wheel_base),
         )  # fmt: skip
         self.state = WatchState(
             np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64),
             np.zeros(n, dtype=np.int64), np.zeros((n, 2)), np.zeros((n, 2)),
+            np.zeros((n, 2)), np.zeros((n, 2)),
             np.zeros((n, 2), dtype=np.int64), np.zeros(n, dtype=np.int64),
         )  # fmt: skip
+        self.state.last[...] = world.data.xpos[world.chassis_body, :2]
+        self.state.last_heading[...] = world.data.xmat[world.chassis_body][:, [0, 3]]
         if active is None:
             active = np.ones(n, dtype=bool)
         inputs = WatchInputs(
@@ -175,12 +182,16 @@ class Watchdog:
         if state.stuck_steps[robot]:
             events.stuck_ended.append((robot, int(state.stuck_steps[robot])))
         state.tipped_steps[robot] = state.stuck_steps[robot] = state.trying[robot] = 0
-        state.anchor[robot] = spot
-        state.anchor_heading[robot] = world.data.xmat[world.chassis_body[robot]][[0, 3]]
+        state.anchor[robot] = state.last[robot] = spot
+        heading = world.data.xmat[world.chassis_body[robot]][[0, 3]]
+        state.anchor_heading[robot] = state.last_heading[robot] = heading
         events.rescued.append((robot, trouble))
 
     # --- checkpoint state ------------------------------------------------------------------
-    _SAVED = ("tipped_steps", "stuck_steps", "trying", "anchor", "anchor_heading")
+    _SAVED = (
+        "tipped_steps", "stuck_steps", "trying", "anchor", "anchor_heading", "last",
+        "last_heading",
+    )  # fmt: skip
 
     def state_dict(self) -> dict[str, np.ndarray]:
         """The watchdog's counters (what a checkpoint stores)."""
@@ -192,9 +203,14 @@ class Watchdog:
         Raises:
             ValueError: an array of another shape.
         """
+        world = self.world
+        now = {
+            "last": world.data.xpos[world.chassis_body, :2],
+            "last_heading": world.data.xmat[world.chassis_body][:, [0, 3]],
+        }
         for name in self._SAVED:
-            if name not in saved:  # written before the turning rule: the run restarts there
-                getattr(self.state, name)[...] = 0.0
+            if name not in saved:  # written before the rule read it: its count restarts there
+                getattr(self.state, name)[...] = now.get(name, 0.0)
                 continue
             target, value = getattr(self.state, name), np.asarray(saved[name])
             if value.shape != target.shape:

@@ -33,6 +33,10 @@ class WatchRules(NamedTuple):
     stuck_cos: float  #: cosine of the turn (from the heading where the run began) that does too
     moving_command: float  #: m/s, the drive or turn command that counts as commanding motion
     rescue_after: int  #: control steps tipped or stuck before a rescue is due (0: never)
+    #: share of the step's commanded travel or turn that, achieved, counts as moving
+    progress_share: float
+    step_s: float  #: s, one control step
+    half_wheel_base: float  #: m, turn rate = (right - left) / 2 / half_wheel_base
 
 
 class WatchInputs(NamedTuple):
@@ -55,6 +59,8 @@ class WatchState(NamedTuple):
     trying: Ints  #: (n,) control steps of commanded motion without progress
     anchor: Floats  #: (n, 2) where the current run of such steps began
     anchor_heading: Floats  #: (n, 2) the chassis' x axis (world x, y) when it began
+    last: Floats  #: (n, 2) the chassis' position at the previous step
+    last_heading: Floats  #: (n, 2) its x axis (world x, y) at the previous step
     ended: Ints  #: (n, 2) out: how long a tip (column 0), a jam (1) that ended lasted
     change: Ints  #: (n,) out: what changed this step (bits)
 
@@ -86,11 +92,24 @@ def watch(rules: WatchRules, inputs: WatchInputs, state: WatchState) -> bool:
             and inputs.reflex_steps[i] == 0
             and not tipped
         )
+        # This step's own progress: a robot that achieves a share of what it commanded (a
+        # robot dithering left and right on the spot) is moving, not held.
+        sx, sy = x - state.last[i, 0], y - state.last[i, 1]
+        lx, ly = state.last_heading[i, 0], state.last_heading[i, 1]
+        rotated = abs(np.arctan2(lx * hy - ly * hx, lx * hx + ly * hy))
+        share = rules.progress_share
+        travelled = np.sqrt(sx * sx + sy * sy) >= share * abs(mean) * rules.step_s
+        spun = rotated >= share * abs(turn) / rules.half_wheel_base * rules.step_s
+        progressed = (abs(mean) >= rules.moving_command and travelled) or (
+            abs(turn) >= rules.moving_command and spun
+        )
+        state.last[i, 0], state.last[i, 1] = x, y
+        state.last_heading[i, 0], state.last_heading[i, 1] = hx, hy
         dx, dy = x - state.anchor[i, 0], y - state.anchor[i, 1]
         ax, ay = state.anchor_heading[i, 0], state.anchor_heading[i, 1]
         norms = (hx * hx + hy * hy) * (ax * ax + ay * ay)
         turned = norms <= 0.0 or hx * ax + hy * ay < rules.stuck_cos * np.sqrt(norms)
-        if not moving or dx * dx + dy * dy > rules.stuck_distance2 or turned:
+        if not moving or progressed or dx * dx + dy * dy > rules.stuck_distance2 or turned:
             state.anchor[i, 0], state.anchor[i, 1] = x, y
             state.anchor_heading[i, 0], state.anchor_heading[i, 1] = hx, hy
             state.trying[i] = 0
@@ -132,13 +151,27 @@ def watch_reference(rules: WatchRules, inputs: WatchInputs, state: WatchState) -
     command = np.maximum(np.abs(mean), np.abs(turn))
     moving = (command >= rules.moving_command) & inputs.active & ~inputs.docked
     moving &= (inputs.reflex_steps == 0) & ~tipped
+    step = position - state.last
+    lh = state.last_heading
+    cross = lh[:, 0] * heading[:, 1] - lh[:, 1] * heading[:, 0]
+    rotated = np.abs(np.arctan2(cross, lh[:, 0] * heading[:, 0] + lh[:, 1] * heading[:, 1]))
+    share = rules.progress_share
+    travelled = np.sqrt(step[:, 0] * step[:, 0] + step[:, 1] * step[:, 1]) >= (
+        share * np.abs(mean) * rules.step_s
+    )
+    spun = rotated >= share * np.abs(turn) / rules.half_wheel_base * rules.step_s
+    progressed = ((np.abs(mean) >= rules.moving_command) & travelled) | (
+        (np.abs(turn) >= rules.moving_command) & spun
+    )
+    state.last[...] = position
+    state.last_heading[...] = heading
     gap = position - state.anchor
     far = gap[:, 0] * gap[:, 0] + gap[:, 1] * gap[:, 1] > rules.stuck_distance2
     h, a = heading, state.anchor_heading
     norms = (h[:, 0] * h[:, 0] + h[:, 1] * h[:, 1]) * (a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1])
     dot = h[:, 0] * a[:, 0] + h[:, 1] * a[:, 1]
     turned = (norms <= 0.0) | (dot < rules.stuck_cos * np.sqrt(norms))
-    restart = ~moving | far | turned
+    restart = ~moving | progressed | far | turned
     state.anchor[restart] = position[restart]
     state.anchor_heading[restart] = heading[restart]
     state.trying[restart] = 0
