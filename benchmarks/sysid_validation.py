@@ -45,7 +45,7 @@ def main() -> int:
     parser.add_argument("--out", default=str(ROOT / "results" / "sysid"))
     parser.add_argument("--figure", default=str(ROOT / "docs" / "images" / "sysid_gap.png"))
     args = parser.parse_args()
-    config = SysidConfig(bootstrap=args.bootstrap, max_evals=150, bootstrap_evals=25)
+    config = SysidConfig(bootstrap=args.bootstrap, max_evals=150, bootstrap_evals=60)
     faults = LogFaults()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -133,9 +133,13 @@ def fit_drive(
     start: np.ndarray = NOMINAL_DRIVE,
     max_evals: int | None = None,
     counts: np.ndarray | None = None,
+    step: float = 1.0,
 ) -> np.ndarray:
     """One robot's drive minimising the replay residuals of ``segs`` ((log index, segment)
-    pairs; ``counts``: how often each one counts, for the bootstrap)."""
+    pairs; ``counts``: how often each one counts, for the bootstrap), from ``start`` with an
+    initial simplex of ``step`` x :data:`DRIVE_SCALE` (a bootstrap refit starts at the fit
+    with a small one: a large first simplex whose vertices all cost more returns the start
+    itself, and a standard error of zero)."""
     counts = np.ones(len(segs), dtype=int) if counts is None else counts
     used = [(i, s, c) for (i, s), c in zip(segs, counts, strict=True) if c > 0]
 
@@ -151,7 +155,7 @@ def fit_drive(
         return float(np.sum(2.0 * (np.sqrt(1.0 + (r / SOFT_L1_SCALE) ** 2) - 1.0)))
 
     x0 = np.clip(start, DRIVE_LOW, DRIVE_HIGH)
-    simplex = np.vstack([x0, x0 + np.diag(DRIVE_SCALE)])
+    simplex = np.vstack([x0, np.clip(x0 + np.diag(DRIVE_SCALE) * step, DRIVE_LOW, DRIVE_HIGH)])
     result = optimize.minimize(
         cost, x0, method="Nelder-Mead", bounds=list(zip(DRIVE_LOW, DRIVE_HIGH, strict=True)),
         options={"maxfev": max_evals or config.max_evals, "initial_simplex": simplex,
@@ -344,7 +348,9 @@ def sysid(logs: list[RunLog], config: SysidConfig | None = None) -> SysidResult:
         boot = []
         for _ in range(config.bootstrap):
             counts = np.bincount(rng.integers(len(segs), size=len(segs)), minlength=len(segs))
-            boot.append(fit_drive(replayers, segs, config, best, config.bootstrap_evals, counts))
+            boot.append(
+                fit_drive(replayers, segs, config, best, config.bootstrap_evals, counts, 0.1)
+            )
         sd = np.std(np.asarray(boot), axis=0, ddof=1)
         drives.append(best)
         drive_sds.append(sd)
