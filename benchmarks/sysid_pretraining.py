@@ -17,10 +17,11 @@ for the same number of episodes, each in the 3-robot, 6-pack hardware field:
 Each is then evaluated greedily on the true robot (its drives, IR and camera noise exactly, no
 randomisation) over ``--eval-episodes`` episodes whose placements no training saw
 (``behaviours.evaluation``'s evaluation stream). The test: Fisher's exact test (two-sided) of
-fitted+DR against each of the others. Writes ``results/sysid/pretraining.csv`` and
-``results/sysid/pretraining.json`` (the tests, the settings and the commit)::
+fitted+DR against each of the others. Writes ``results/sysid/pretraining_<behaviour>.csv`` and
+``results/sysid/pretraining_<behaviour>.json`` (the tests, the settings and the commit)::
 
-    python -m benchmarks.sysid_pretraining
+    python -m benchmarks.sysid_pretraining                     # Forage
+    python -m benchmarks.sysid_pretraining --behaviour mate    # Mate
 """
 
 from __future__ import annotations
@@ -125,10 +126,11 @@ def main() -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     frame = pd.DataFrame(rows)
-    write_text(out / "pretraining.csv", frame.to_csv(index=False, float_format="%.4g"))
+    stem = f"pretraining_{args.behaviour}"
+    write_text(out / f"{stem}.csv", frame.to_csv(index=False, float_format="%.4g"))
     commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
                             text=True).stdout.strip()  # fmt: skip
-    write_json(out / "pretraining.json", {
+    write_json(out / f"{stem}.json", {
         "command": "python -m benchmarks.sysid_pretraining " + " ".join(sys.argv[1:]),
         "commit": commit, "behaviour": args.behaviour, "true_robot_seed": args.true_robot,
         "fitted_profile": str(fitted_path.relative_to(ROOT)) if fitted_path.is_relative_to(ROOT)
