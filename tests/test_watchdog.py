@@ -27,8 +27,9 @@ def scene(backend: str, rescue: bool = False) -> tuple[SurvivalWorld, Watchdog, 
     sw.world.set_robot_pose(1, -0.5, 0.0, math.pi / 2)
     mujoco.mj_forward(sw.world.model, sw.world.data)
     wheels = np.zeros((2, 2))
-    dog = Watchdog(sw.world, wheels, sw.docked, sw.reflex_steps_left, rescue=rescue,
-                   rescue_after_steps=10, backend=backend)  # fmt: skip
+    rules = SurvivalConfig(rescue=rescue, rescue_after_steps=10)
+    dog = Watchdog(sw.world, wheels, sw.docked, sw.reflex_steps_left, rules=rules,
+                   backend=backend)  # fmt: skip
     return sw, dog, wheels
 
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from cyber_rodent import constants as C
 from cyber_rodent.backend import DEFAULT_BACKEND, Backend, bind, check_backend, pick
+from cyber_rodent.survival.config import SurvivalConfig
 from cyber_rodent.survival.watchdog_kernels import (
     RESCUE_DUE,
     STUCK_ENDED,
@@ -95,10 +96,10 @@ class Watchdog:
         docked: (n,) bool, the survival world's docked flags.
         reflex_steps: (n,) int, the survival world's reflex steps still to run.
         active: (n,) bool, robots that run an agent (None: all, always).
-        tip_uprightness, stuck_steps, stuck_distance, stuck_turn, stuck_progress, rescue,
-            rescue_after_steps: the rules (``survival.*``,
-            :class:`~cyber_rodent.survival.SurvivalConfig`).
-        control_dt: s, one control step (the commanded travel of a step is speed x this).
+        rules: the survival rules whose watchdog fields it applies (``tip_uprightness``,
+            ``stuck_steps``, ``stuck_distance``, ``stuck_turn``, ``stuck_progress``, ``rescue``,
+            ``rescue_after_steps``; ``control_dt``, the step the commanded travel is taken
+            over); default: the paper's.
         backend: ``"numba"`` or ``"numpy"``.
 
     Attributes:
@@ -113,23 +114,17 @@ class Watchdog:
         reflex_steps: np.ndarray,
         active: np.ndarray | None = None,
         *,
-        tip_uprightness: float = 0.5,
-        stuck_steps: int = 25,
-        stuck_distance: float = 0.05,
-        stuck_turn: float = 0.5,
-        stuck_progress: float = 0.2,
-        control_dt: float = 0.2,
-        rescue: bool = False,
-        rescue_after_steps: int = 25,
+        rules: SurvivalConfig | None = None,
         backend: Backend = DEFAULT_BACKEND,
     ) -> None:
         self.world = world
         n = world.config.n_robots
+        r = rules or SurvivalConfig()
         self.rules = WatchRules(
-            float(tip_uprightness), int(stuck_steps), float(stuck_distance) ** 2,
-            math.cos(float(stuck_turn)), MOVING_COMMAND,
-            int(rescue_after_steps) if rescue else 0, float(stuck_progress), float(control_dt),
-            float(world.robot.half_wheel_base),
+            float(r.tip_uprightness), int(r.stuck_steps), float(r.stuck_distance) ** 2,
+            math.cos(float(r.stuck_turn)), MOVING_COMMAND,
+            int(r.rescue_after_steps) if r.rescue else 0, float(r.stuck_progress),
+            float(r.control_dt), float(world.robot.half_wheel_base),
         )  # fmt: skip
         self.state = WatchState(
             np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64),

@@ -208,11 +208,7 @@ class EvolutionRunner:
         #: finds tipped and stuck robots every step; rescues them if ``survival.rescue``
         self.watchdog = Watchdog(
             self.world, self.action.wheels, self.survival.docked,
-            self.survival.reflex_steps_left, self.scheduler.active,
-            tip_uprightness=rules.tip_uprightness, stuck_steps=rules.stuck_steps,
-            stuck_distance=rules.stuck_distance, stuck_turn=rules.stuck_turn,
-            stuck_progress=rules.stuck_progress, control_dt=rules.control_dt, rescue=rules.rescue,
-            rescue_after_steps=rules.rescue_after_steps, backend=backend,
+            self.survival.reflex_steps_left, self.scheduler.active, rules=rules, backend=backend,
         )  # fmt: skip
         self.events = EventLog()
         self.steps = 0
