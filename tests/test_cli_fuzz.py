@@ -77,7 +77,7 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
         (["evolve", "--out", "{started}", "--resume"], "--force"),
         (["evolve", "--out", "{started}"], "--force"),
         (["evolve", "--out", "{file}/run"], "is a file"),
-        (["evolve", "--policies", "smart"], "invalid choice"),
+        (["evolve", "--policies", "smart"], "policies must be trained or reactive or a directory"),
         (["evolve", "--bogus-flag"], "unrecognized arguments"),
         (["evolve", "stray"], "unrecognized arguments"),
         (
@@ -159,7 +159,7 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
         (["sweep", "--out", "{notes}"], "not empty"),
         (["sweep", "--out", "{notes}", "--force"], "refusing to delete"),
         (["sweep", "--out", "{empty}", "--resume"], "no sweep"),
-        (["sweep", "--out", "{new}", "--policies", "x"], "invalid choice"),
+        (["sweep", "--out", "{new}", "--policies", "x"], "policies must be trained or reactive"),
         (["sweep", "--out", "{new}", "--config", "{bad_toml}"], "not valid TOML"),
         (["sweep", "--out", "{new}", "--tensorboard", "{file}"], "--tensorboard"),
         (["sweep", "--out", "{new}", "--tensorboard", "{file}/tb"], "is a file"),
@@ -225,7 +225,8 @@ CASES: dict[str, list[tuple[list[str], str]]] = {
         (["transfer", "--from", "{alien_run}", "--out", "{new}", "--generations", "0"], "gener"),
         (["transfer", "--from", "{alien_run}", "--out", "{new}", "--generation", "-1"], "gener"),
         (["transfer", "--from", "{alien_run}", "--out", "{new}", "--seed", "-5"], "--seed"),
-        (["transfer", "--from", "{alien_run}", "--out", "{new}", "--profile", "mars"], "choice"),
+        (["transfer", "--from", "{alien_run}", "--out", "{new}", "--profile", "mars"],
+         "--profile must be one of sim, hardware or a profile file"),
     ],
     "view": [
         (["view"], "one of"),
