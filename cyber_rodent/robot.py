@@ -30,6 +30,7 @@ Two robots are built in (:data:`ROBOTS`): ``cyber_rodent`` (the paper's robot,
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -405,17 +406,11 @@ CYBER_RODENT_SENSORS: tuple[SensorRow, ...] = (
 #: The "six proximity" sensors of Search and the controller: the 5 front and the back one.
 CYBER_RODENT_PROXIMITY: tuple[int, ...] = (0, 1, 2, 3, 4, 5)
 
-#: An e-puck / Thymio class robot's eight IR proximity sensors (4-10 cm reach on the real
-#: robots; 8 cm here), six on the front half and two at the back.
-SMALL_DISC_SENSORS: tuple[SensorRow, ...] = (
-    SensorRow("range_front", "range", 0.08, 0.0),
-    SensorRow("range_front_left30", "range", 0.08, 30.0),
-    SensorRow("range_front_right30", "range", 0.08, -30.0),
-    SensorRow("range_front_left60", "range", 0.08, 60.0),
-    SensorRow("range_front_right60", "range", 0.08, -60.0),
-    SensorRow("range_back", "range", 0.08, 180.0),
-    SensorRow("range_left", "range", 0.08, 90.0),
-    SensorRow("range_right", "range", 0.08, -90.0),
+#: An e-puck / Thymio class robot's eight IR proximity sensors: the Cyber Rodent's layout (its
+#: sites are named and placed alike in ``small_disc.xml``), each reaching 8 cm (4-10 cm on the
+#: real robots).
+SMALL_DISC_SENSORS: tuple[SensorRow, ...] = tuple(
+    dataclasses.replace(row, limit=0.08) for row in CYBER_RODENT_SENSORS
 )
 
 #: How to build each registered robot: name → a function returning its model. A builder runs
