@@ -54,9 +54,10 @@ from cyber_rodent.sysid.synthetic import true_robot
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def true_profile(seed: int, fitted: HardwareProfile) -> FittedProfile:
-    """The hidden hardware ``seed`` as a profile with no uncertainty (in ``fitted``'s field)."""
-    truth = true_robot(seed)
+def true_profile(seed: int, fitted: HardwareProfile, spread: str = "typical") -> FittedProfile:
+    """The hidden hardware ``seed`` (drawn within ``SPREADS[spread]``) as a profile with no
+    uncertainty (in ``fitted``'s field)."""
+    truth = true_robot(seed, spread=spread)
     drives = truth.drives
     actuators = FittedActuators(
         wheel_gain=tuple((float(d[0]), float(d[1])) for d in drives),

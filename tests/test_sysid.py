@@ -155,3 +155,70 @@ def test_ir_and_camera_fits_recover_known_noise() -> None:
     b, d, miss = fit_camera(seen, bearing, ratio)
     assert b == pytest.approx(4, rel=0.05) and d == pytest.approx(0.1, rel=0.05)
     assert miss == pytest.approx(0.1, abs=0.01)
+
+
+@pytest.fixture(scope="module")
+def short_log(tmp_path_factory):  # type: ignore[no-untyped-def]
+    """A 24 s log of hidden robot 101 (the fit's development seed), and its hidden values."""
+    from cyber_rodent.sysid.synthetic import LogFaults, simulate_log, true_robot
+
+    truth = true_robot(101, n_robots=2)
+    faults = LogFaults(encoder_std=0.02, encoder_glitch=0.0, tracker_std=0.005,
+                       tracker_yaw_std_deg=2.0, substep_jitter=0, clock_std=0.0)  # fmt: skip
+    table, field, packs = simulate_log(truth, 24.0, seed=5, faults=faults)
+    path = write_log(tmp_path_factory.mktemp("log") / "log.csv", table, field, packs)
+    return read_log(path), truth, faults
+
+
+def test_log_noise_reads_the_encoder_and_tracker_noise_off_the_residuals(short_log) -> None:  # type: ignore[no-untyped-def]
+    from cyber_rodent.sysid.errors import log_noise
+    from cyber_rodent.sysid.replay import Replayer, segments
+
+    log, truth, faults = short_log
+    per_robot = {r: [(0, s) for s in segments(log, 4.0) if s.robot == r] for r in log.robots}
+    noise = log_noise([Replayer(log)], per_robot, dict(enumerate(truth.drives)))
+    assert noise.encoder_std == pytest.approx(faults.encoder_std, rel=0.15)
+    assert noise.tracker_std == pytest.approx(faults.tracker_std, rel=0.15)
+    yaw_deg = math.degrees(noise.tracker_yaw_std)
+    assert yaw_deg == pytest.approx(faults.tracker_yaw_std_deg, rel=0.15)
+    assert noise.glitch_rate < 0.01
+
+
+def test_a_noiseless_replicate_with_the_true_drives_follows_the_log(short_log) -> None:  # type: ignore[no-untyped-def]
+    """Re-simulated from the logged start of each 4 s segment with the hidden drives and no
+    noise, the replicate's poses stay within the log's tracker noise plus a little drift, and
+    its time stamps, commands and dropped frames are the log's."""
+    from cyber_rodent.sysid.errors import LogNoise, replicate
+    from cyber_rodent.sysid.replay import segments
+
+    log, truth, faults = short_log
+    starts = {(s.robot, int(s.rows["step"].iloc[0])) for s in segments(log, 4.0)}
+    rep = replicate(log, dict(enumerate(truth.drives)), truth.range_noise, truth.vision,
+                    LogNoise(), starts, np.random.default_rng(0))  # fmt: skip
+    a, b = log.table, rep.table
+    for column in ("t", "step", "robot", "cmd_left", "cmd_right", "tracked", "led"):
+        assert np.array_equal(a[column].to_numpy(), b[column].to_numpy()), column
+    tracked = a["tracked"].to_numpy(dtype=bool)
+    error = np.hypot(*(a.loc[tracked, c].to_numpy() - b.loc[tracked, c].to_numpy() for c in "xy"))
+    assert np.median(error) < 3 * faults.tracker_std and np.quantile(error, 0.9) < 0.03
+    assert np.isnan(b.loc[~tracked, "x"]).all()
+    wheel = np.abs(a["wheel_left"].to_numpy() - b["wheel_left"].to_numpy())
+    assert np.median(wheel) < 2 * faults.encoder_std
+
+
+@pytest.mark.slow
+def test_sysid_end_to_end_reports_every_error_part(short_log) -> None:  # type: ignore[no-untyped-def]
+    from cyber_rodent.sysid.fit import SysidConfig, sysid
+
+    log, truth, _ = short_log
+    config = SysidConfig(segment_s=6.0, bootstrap=2, max_evals=40, bootstrap_evals=5,
+                         replicates=2)  # fmt: skip
+    result = sysid([log], config)
+    assert set(result.parameters) == set(truth.parameters())
+    for name, (_, se) in result.parameters.items():
+        e = result.errors[name]
+        assert e.replicates == 2
+        assert se == pytest.approx(math.sqrt(e.segment_sd**2 + e.replicate_sd**2
+                                             + e.replicate_bias**2))  # fmt: skip
+    assert result.profile.actuators is not None
+    assert result.profile.actuators.wheel_gain_sd[0][0] == result.parameters["robot0.gain_left"][1]

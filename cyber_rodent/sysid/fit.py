@@ -18,8 +18,11 @@
   of the logged minus simulated values (robust to a target the log saw but the posed world
   does not).
 
-Uncertainty: every parameter is refitted on ``bootstrap`` resamples (with replacement) of the
-fitting segments; its standard error is the resamples' standard deviation. Segments numbered
+Uncertainty (:class:`ParameterError`): every parameter is refitted on ``bootstrap`` resamples
+(with replacement) of the fitting segments (their standard deviation: how much the fit moves
+with the segments), and on ``replicates`` re-simulations of the logs with the fitted values
+(:mod:`~cyber_rodent.sysid.errors`: their spread and their bias about the fitted values, which
+the segment bootstrap cannot see). The standard error reported combines the three. Segments numbered
 ``holdout_every - 1``, ``2 holdout_every - 1``, ... of each robot are held out: never fitted,
 left for ``cyber-rodent gap``.
 """
@@ -39,8 +42,9 @@ from cyber_rodent.profiles import (
     RangeNoise,
     VisionUncertainty,
 )
+from cyber_rodent.sysid.errors import MAD_TO_SD, log_noise, replicate
 from cyber_rodent.sysid.log import CAMERA_CLASSES, RunLog, wrap_angle
-from cyber_rodent.sysid.replay import NOMINAL_DRIVE, Replayer, Segment, segments
+from cyber_rodent.sysid.replay import DRIVE_NAMES, NOMINAL_DRIVE, Replayer, Segment, segments
 from cyber_rodent.validation import integer, number, validate_fields
 from cyber_rodent.vision import CameraConfig
 from cyber_rodent.vision.geometric import GeometricVision
@@ -51,6 +55,8 @@ DRIVE_HIGH = np.array([3.0, 3.0, 0.5, 5.0])
 DRIVE_SCALE = np.array([0.1, 0.1, 0.02, 0.3])
 #: Residuals (in units of their scales) beyond which the loss grows linearly, not squared.
 SOFT_L1_SCALE = 2.0
+#: The camera's fitted values, by the names the fit reports them under.
+CAMERA_NAMES = ("vision.bearing_std_deg", "vision.distance_rel_std", "vision.dropout")
 
 
 @dataclass(frozen=True)
@@ -69,6 +75,8 @@ class SysidConfig:
         yaw_sd_deg: degrees, scale of a heading residual; default 3.
         max_evals: replays allowed to the full fit of one robot; default 200.
         bootstrap_evals: replays allowed to each bootstrap refit (warm-started); default 30.
+        replicates: re-simulated replicates of the logs for the error model
+            (:mod:`~cyber_rodent.sysid.errors`; 0: the segment bootstrap alone); default 8.
     """
 
     segment_s: float = number(10.0, 1.0, 120.0, unit="s")
@@ -80,6 +88,7 @@ class SysidConfig:
     yaw_sd_deg: float = number(3.0, 0.01, 180.0, unit="deg")
     max_evals: int = integer(200, 5, 100_000)
     bootstrap_evals: int = integer(30, 2, 100_000)
+    replicates: int = integer(8, 0, 10_000)
 
     def __post_init__(self) -> None:
         validate_fields(self, "sysid.")
@@ -90,21 +99,45 @@ class SysidConfig:
         return k > 0 and segment.index % k == k - 1
 
 
+@dataclass(frozen=True)
+class ParameterError:
+    """One fitted value's error estimate.
+
+    Attributes:
+        segment_sd: the standard deviation of its refits over resampled log segments.
+        replicate_sd: the standard deviation of its refits on the re-simulated replicates.
+        replicate_bias: their mean minus the fitted value.
+        replicates: how many replicates it was refitted on.
+    """
+
+    segment_sd: float
+    replicate_sd: float
+    replicate_bias: float
+    replicates: int
+
+    @property
+    def total(self) -> float:
+        """The reported standard error: ``sqrt(segment_sd² + replicate_sd² + replicate_bias²)``."""
+        return math.sqrt(self.segment_sd**2 + self.replicate_sd**2 + self.replicate_bias**2)
+
+
 @dataclass
 class SysidResult:
     """What a fit found.
 
     Attributes:
         profile: the fitted profile.
-        parameters: name -> (value, standard error); drive values per robot as
-            ``robot<id>.<name>``.
+        parameters: name -> (value, standard error: :attr:`ParameterError.total`); drive values
+            per robot as ``robot<id>.<name>``.
         fitted_segments, held_out: (log, robot, segment) of the segments used and kept out.
+        errors: name -> the parts of its standard error.
     """
 
     profile: FittedProfile
     parameters: dict[str, tuple[float, float]]
     fitted_segments: list[tuple[int, int, int]] = field(default_factory=list)
     held_out: list[tuple[int, int, int]] = field(default_factory=list)
+    errors: dict[str, ParameterError] = field(default_factory=dict)
 
 
 def _segment_residuals(
@@ -294,9 +327,6 @@ def fit_ir(obs: np.ndarray, sim: np.ndarray, top: np.ndarray) -> tuple[float, fl
     return math.exp(result.x[0]), 1 / (1 + math.exp(-result.x[1]))
 
 
-MAD_TO_SD = 1.4826
-
-
 def fit_camera(
     seen: np.ndarray, bearing: np.ndarray, ratio: np.ndarray
 ) -> tuple[float, float, float]:
@@ -317,6 +347,81 @@ def _resample(blocks: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.concatenate([np.flatnonzero(blocks == b) for b in chosen])
 
 
+SegmentIds = list[tuple[int, int, int]]
+
+
+def _fitting_segments(
+    logs: list[RunLog], config: SysidConfig
+) -> tuple[dict[int, list[tuple[int, Segment]]], SegmentIds, SegmentIds]:
+    """Each robot's (log index, segment) pairs to fit, and the (log, robot, segment) numbers
+    of the segments fitted and held out."""
+    robots = sorted({r for log in logs for r in log.robots})
+    per_robot: dict[int, list[tuple[int, Segment]]] = {r: [] for r in robots}
+    fitted: SegmentIds = []
+    held: SegmentIds = []
+    for li, log in enumerate(logs):
+        for s in segments(log, config.segment_s):
+            (held if config.held_out(s) else fitted).append((li, s.robot, s.index))
+            if not config.held_out(s):
+                per_robot[s.robot].append((li, s))
+    for r, segs in per_robot.items():
+        if not segs:
+            raise ValueError(f"logs: robot {r} has no segment of {config.segment_s:g} s to fit")
+    return per_robot, fitted, held
+
+
+def _sensor_values(samples: SensorSamples) -> dict[str, float]:
+    values: dict[str, float] = {}
+    if len(samples.ir_obs):
+        std, dropout = fit_ir(samples.ir_obs, samples.ir_sim, samples.ir_max)
+        values.update({"range_noise.std": std, "range_noise.dropout": dropout})
+    if len(samples.cam_seen):
+        cam = fit_camera(samples.cam_seen, samples.cam_bearing, samples.cam_ratio)
+        values.update(zip(CAMERA_NAMES, cam, strict=True))
+    return values
+
+
+def _sensor_bootstrap(samples: SensorSamples, config: SysidConfig,
+                      rng: np.random.Generator) -> dict[str, float]:  # fmt: skip
+    """Each sensor value's standard deviation over resamples of the sample blocks."""
+    out: dict[str, float] = {}
+    if len(samples.ir_obs):
+        boot: list[tuple[float, ...]] = []
+        for _ in range(config.bootstrap):
+            idx = _resample(samples.ir_block, rng)
+            boot.append(fit_ir(samples.ir_obs[idx], samples.ir_sim[idx], samples.ir_max[idx]))
+        sds = np.std(np.asarray(boot), axis=0, ddof=1)
+        out.update({"range_noise.std": float(sds[0]), "range_noise.dropout": float(sds[1])})
+    if len(samples.cam_seen):
+        boot = []
+        for _ in range(config.bootstrap):
+            idx = _resample(samples.cam_block, rng)
+            boot.append(
+                fit_camera(samples.cam_seen[idx], samples.cam_bearing[idx], samples.cam_ratio[idx])
+            )
+        sds = np.std(np.asarray(boot), axis=0, ddof=1)
+        out.update(zip(CAMERA_NAMES, map(float, sds), strict=True))
+    return out
+
+
+def _noise_models(values: dict[str, float]) -> tuple[RangeNoise, VisionUncertainty]:
+    range_noise = RangeNoise(enabled=False)
+    vision = VisionUncertainty(enabled=False)
+    if "range_noise.std" in values:
+        range_noise = RangeNoise(std=values["range_noise.std"],
+                                 dropout=values["range_noise.dropout"])  # fmt: skip
+    if CAMERA_NAMES[0] in values:
+        vision = VisionUncertainty(bearing_std_deg=values[CAMERA_NAMES[0]],
+                                   distance_rel_std=values[CAMERA_NAMES[1]],
+                                   dropout=values[CAMERA_NAMES[2]])  # fmt: skip
+    return range_noise, vision
+
+
+def _drive_values(drives: dict[int, np.ndarray]) -> dict[str, float]:
+    return {f"robot{r}.{name}": float(d[k]) for r, d in drives.items()
+            for k, name in enumerate(DRIVE_NAMES)}  # fmt: skip
+
+
 def sysid(logs: list[RunLog], config: SysidConfig | None = None) -> SysidResult:
     """Fit a profile to ``logs`` (see the module docstring).
 
@@ -329,67 +434,44 @@ def sysid(logs: list[RunLog], config: SysidConfig | None = None) -> SysidResult:
                          "(wheel_left/wheel_right or tracked/x/y/yaw)")  # fmt: skip
     rng = np.random.default_rng(np.random.SeedSequence([config.seed, 0xB007]))
     replayers = [Replayer(log) for log in logs]
-    robots = sorted({r for log in logs for r in log.robots})
-    fitted: list[tuple[int, int, int]] = []
-    held: list[tuple[int, int, int]] = []
-    per_robot: dict[int, list[tuple[int, Segment]]] = {r: [] for r in robots}
-    for li, log in enumerate(logs):
-        for s in segments(log, config.segment_s):
-            (held if config.held_out(s) else fitted).append((li, s.robot, s.index))
-            if not config.held_out(s):
-                per_robot[s.robot].append((li, s))
-    parameters: dict[str, tuple[float, float]] = {}
-    drives, drive_sds = [], []
-    for r in robots:
-        segs = per_robot[r]
-        if not segs:
-            raise ValueError(f"logs: robot {r} has no segment of {config.segment_s:g} s to fit")
-        best = fit_drive(replayers, segs, config)
+    per_robot, fitted, held = _fitting_segments(logs, config)
+    drives = {r: fit_drive(replayers, segs, config) for r, segs in per_robot.items()}
+    segment_sd: dict[str, float] = {}
+    for r, segs in per_robot.items():
         boot = []
         for _ in range(config.bootstrap):
             counts = np.bincount(rng.integers(len(segs), size=len(segs)), minlength=len(segs))
-            boot.append(
-                fit_drive(replayers, segs, config, best, config.bootstrap_evals, counts, 0.1)
-            )
+            boot.append(fit_drive(replayers, segs, config, drives[r], config.bootstrap_evals,
+                                  counts, 0.1))  # fmt: skip
         sd = np.std(np.asarray(boot), axis=0, ddof=1)
-        drives.append(best)
-        drive_sds.append(sd)
-        for k, name in enumerate(("gain_left", "gain_right", "motor_lag", "friction")):
-            parameters[f"robot{r}.{name}"] = (float(best[k]), float(sd[k]))
+        segment_sd.update({f"robot{r}.{n}": float(v) for n, v in zip(DRIVE_NAMES, sd, strict=True)})
     keep = set(fitted)
     samples = sensor_samples(logs, config, keep)
-    range_noise = RangeNoise(enabled=False)
-    vision = VisionUncertainty(enabled=False)
-    uncertainty: list[tuple[str, float]] = []
-    if len(samples.ir_obs):
-        std, dropout = fit_ir(samples.ir_obs, samples.ir_sim, samples.ir_max)
-        boot_ir = []
-        for _ in range(config.bootstrap):
-            idx = _resample(samples.ir_block, rng)
-            boot_ir.append(fit_ir(samples.ir_obs[idx], samples.ir_sim[idx], samples.ir_max[idx]))
-        sds = np.std(np.asarray(boot_ir), axis=0, ddof=1)
-        range_noise = RangeNoise(std=float(std), dropout=float(dropout))
-        uncertainty += [("range_noise.std", float(sds[0])), ("range_noise.dropout", float(sds[1]))]
-        parameters["range_noise.std"] = (std, float(sds[0]))
-        parameters["range_noise.dropout"] = (dropout, float(sds[1]))
-    if len(samples.cam_seen):
-        values = fit_camera(samples.cam_seen, samples.cam_bearing, samples.cam_ratio)
-        boot_cam = []
-        for _ in range(config.bootstrap):
-            idx = _resample(samples.cam_block, rng)
-            boot_cam.append(
-                fit_camera(samples.cam_seen[idx], samples.cam_bearing[idx], samples.cam_ratio[idx])
-            )
-        sds = np.std(np.asarray(boot_cam), axis=0, ddof=1)
-        vision = VisionUncertainty(
-            bearing_std_deg=values[0], distance_rel_std=values[1], dropout=values[2]
-        )
-        for k, name in enumerate(
-            ("vision.bearing_std_deg", "vision.distance_rel_std", "vision.dropout")
-        ):
-            uncertainty.append((name, float(sds[k])))
-            parameters[name] = (float(values[k]), float(sds[k]))
-    d, sd = np.asarray(drives), np.asarray(drive_sds)
+    values = {**_drive_values(drives), **_sensor_values(samples)}
+    segment_sd.update(_sensor_bootstrap(samples, config, rng))
+    range_noise, vision = _noise_models(values)
+    replicate_values = []
+    if config.replicates:
+        noise = log_noise(replayers, per_robot, drives)
+        starts = [{(s.robot, int(s.rows["step"].iloc[0])) for s in segments(log, config.segment_s)}
+                  for log in logs]  # fmt: skip
+        for k in range(config.replicates):
+            rep_rng = np.random.default_rng(np.random.SeedSequence([config.seed, 0xE77, k]))
+            rep_logs = [replicate(log, drives, range_noise, vision, noise, starts[li], rep_rng)
+                        for li, log in enumerate(logs)]  # fmt: skip
+            rep_segs, _, _ = _fitting_segments(rep_logs, config)
+            rep_drives = {r: fit_drive(replayers, segs, config) for r, segs in rep_segs.items()}
+            rep_samples = sensor_samples(rep_logs, config, keep)
+            replicate_values.append({**_drive_values(rep_drives), **_sensor_values(rep_samples)})
+    errors: dict[str, ParameterError] = {}
+    for name, value in values.items():
+        reps = np.array([v[name] for v in replicate_values if name in v])
+        spread = float(np.std(reps, ddof=1)) if len(reps) > 1 else 0.0
+        bias = float(reps.mean() - value) if len(reps) else 0.0
+        errors[name] = ParameterError(segment_sd.get(name, 0.0), spread, bias, len(reps))
+    parameters = {name: (value, errors[name].total) for name, value in values.items()}
+    d = np.array([drives[r] for r in per_robot])
+    sd = np.array([[parameters[f"robot{r}.{n}"][1] for n in DRIVE_NAMES] for r in per_robot])
     actuators = FittedActuators(
         wheel_gain=tuple((float(a), float(b)) for a, b in d[:, :2]),
         wheel_gain_sd=tuple((float(a), float(b)) for a, b in sd[:, :2]),
@@ -398,14 +480,17 @@ def sysid(logs: list[RunLog], config: SysidConfig | None = None) -> SysidResult:
         motor_lag=tuple(map(float, d[:, 2])),
         motor_lag_sd=tuple(map(float, sd[:, 2])),
     )
+    uncertainty = tuple((name, parameters[name][1]) for name in values
+                        if not name.startswith("robot"))  # fmt: skip
     n_packs = max(len(log.packs) for log in logs)
     profile = FittedProfile(
         range_noise=range_noise, vision=vision, actuators=actuators,
-        field=FieldLayout(n_robots=len(robots), n_packs=n_packs),
-        uncertainty=tuple(uncertainty),
+        field=FieldLayout(n_robots=len(per_robot), n_packs=n_packs),
+        uncertainty=uncertainty,
     )  # fmt: skip
-    return SysidResult(profile, parameters, fitted, held)
+    return SysidResult(profile, parameters, fitted, held, errors)
 
 
-__all__ = ["SensorSamples", "SysidConfig", "SysidResult", "fit_camera", "fit_drive", "fit_ir",
-           "ir_negative_log_likelihood", "sensor_samples", "sysid"]  # fmt: skip
+__all__ = ["ParameterError", "SensorSamples", "SysidConfig", "SysidResult", "fit_camera",
+           "fit_drive", "fit_ir", "ir_negative_log_likelihood", "sensor_samples",
+           "sysid"]  # fmt: skip

@@ -69,6 +69,35 @@ class DriveWriter:
         return speeds
 
 
+def set_start_state(writer: DriveWriter, robot: int, row: pd.Series, drive: np.ndarray) -> None:
+    """Put robot ``robot`` of ``writer``'s world in the state a log row records: its pose (the
+    field centre, facing +x, if the row has none), its body and wheels moving at the logged
+    wheel speeds (the command times the gains if there are none), and its motors' filtered
+    command where those speeds settled. The caller runs ``mj_forward``."""
+    w = writer.world
+    d = w.data
+    if "tracked" in row and bool(row["tracked"]):
+        x, y, yaw = float(row["x"]), float(row["y"]), float(row["yaw"])
+    else:
+        x, y, yaw = 0.0, 0.0, 0.0
+    w.set_robot_pose(robot, x, y, yaw)
+    cmd = np.array([float(row["cmd_left"]), float(row["cmd_right"])])
+    gains = np.maximum(np.asarray(drive[:2], dtype=float), 1e-3)
+    if "wheel_left" in row:
+        wheels = np.array([float(row["wheel_left"]), float(row["wheel_right"])])
+        settled = wheels / gains
+    else:
+        wheels, settled = cmd * gains, cmd
+    radius = w.wheel_radius
+    v = wheels.mean()
+    omega = (wheels[1] - wheels[0]) / (2 * w.robot.half_wheel_base)
+    qv = int(w.root_qvel_adr[robot])
+    d.qvel[qv : qv + 2] = (v * math.cos(yaw), v * math.sin(yaw))
+    d.qvel[qv + 5] = omega
+    d.qvel[writer.wheel_dof[robot]] = wheels / radius
+    d.act[writer.act_adr[robot]] = settled / radius
+
+
 @dataclass(frozen=True)
 class Segment:
     """Rows ``start`` .. ``stop - 1`` of one robot's rows in a log.
@@ -127,28 +156,8 @@ class Replayer:
         d = w.data
         mujoco.mj_resetData(w.model, d)
         self.drive.set(0, np.asarray(drive, dtype=float))
-        first = rows.iloc[0]
-        if "tracked" in rows and bool(first["tracked"]):
-            x, y, yaw = float(first["x"]), float(first["y"]), float(first["yaw"])
-        else:
-            x, y, yaw = 0.0, 0.0, 0.0
-        w.set_robot_pose(0, x, y, yaw)
         cmd = rows[["cmd_left", "cmd_right"]].to_numpy(dtype=float)
-        if "wheel_left" in rows:
-            wheels = np.array([float(first["wheel_left"]), float(first["wheel_right"])])
-        else:
-            wheels = cmd[0] * np.asarray(drive[:2])
-        radius = w.wheel_radius
-        v = wheels.mean()
-        omega = (wheels[1] - wheels[0]) / (2 * w.robot.half_wheel_base)
-        qv = int(w.root_qvel_adr[0])
-        d.qvel[qv : qv + 2] = (v * math.cos(yaw), v * math.sin(yaw))
-        d.qvel[qv + 5] = omega
-        d.qvel[self.drive.wheel_dof[0]] = wheels / radius
-        # the motors' filtered command: what the measured speeds settled on (else the command)
-        gains = np.maximum(np.asarray(drive[:2], dtype=float), 1e-3)
-        settled = wheels / gains if "wheel_left" in rows else cmd[0]
-        d.act[self.drive.act_adr[0]] = settled / radius
+        set_start_state(self.drive, 0, rows.iloc[0], drive)
         mujoco.mj_forward(w.model, d)
         t = rows["t"].to_numpy(dtype=float)
         n = len(rows)
@@ -161,4 +170,5 @@ class Replayer:
         return speeds, poses
 
 
-__all__ = ["DRIVE_NAMES", "NOMINAL_DRIVE", "DriveWriter", "Replayer", "Segment", "segments"]
+__all__ = ["DRIVE_NAMES", "NOMINAL_DRIVE", "DriveWriter", "Replayer", "Segment", "segments",
+           "set_start_state"]  # fmt: skip

@@ -23,6 +23,7 @@ from cyber_rodent.sysid.log import CAMERA_CLASSES
 from cyber_rodent.sysid.replay import DriveWriter
 from cyber_rodent.validation import integer, number, validate_fields
 from cyber_rodent.vision import CameraConfig, make_provider
+from cyber_rodent.vision.types import VisionFrame
 from cyber_rodent.world import World, WorldConfig
 
 
@@ -79,23 +80,81 @@ class TrueRobot:
         return out
 
 
-def true_robot(seed: int, n_robots: int = 3) -> TrueRobot:
-    """A hidden hardware drawn from ``seed``: gains U[0.75, 1.15] per wheel, motor lag
-    U[0.04, 0.15] s, friction factor U[0.6, 1.4], IR noise U[0.005, 0.04] m with dropout
-    U[0, 0.06], camera bearing U[1, 8] deg, distance U[0.03, 0.2], miss rate U[0.02, 0.2]."""
+def sensor_columns(
+    ranges: np.ndarray | None, frame: VisionFrame | None, r: int
+) -> dict[str, float]:
+    """Robot ``r``'s IR and camera columns of a log row from a world's noisy readings
+    (``ranges``: every robot's) and vision frame (empty where the camera did not see); either
+    may be None (no such columns)."""
+    row: dict[str, float] = {}
+    if ranges is not None:
+        row.update({f"ir{i}": float(v) for i, v in enumerate(ranges[r])})
+    if frame is None:
+        return row
+    areas = {c: math.nan for c in range(3)}
+    for blob in frame.blobs[r] if frame.blobs else []:
+        if abs(blob.distance - frame.distance[r, blob.cls]) < 1e-12:
+            areas[blob.cls] = blob.area
+    for c, name in enumerate(CAMERA_CLASSES):
+        seen = bool(frame.visible[r, c])
+        row[f"cam_{name}_seen"] = float(seen)
+        row[f"cam_{name}_bearing"] = float(frame.bearing[r, c]) if seen else math.nan
+        row[f"cam_{name}_distance"] = float(frame.distance[r, c]) if seen else math.nan
+        row[f"cam_{name}_area"] = (
+            areas[c] if seen and not math.isnan(areas[c]) else (0.0 if seen else math.nan)
+        )
+    return row
+
+
+@dataclass(frozen=True)
+class HardwareSpread:
+    """The uniform ranges hidden hardware is drawn from (each a (low, high) pair).
+
+    Attributes:
+        gain: each wheel's gain; lag: s, motor lag; friction: wheel-floor friction factor;
+        ir_std: m, IR noise; ir_dropout; bearing_deg, distance_rel, miss: the camera's
+        bearing and relative distance noise and miss rate.
+    """
+
+    gain: tuple[float, float] = (0.75, 1.15)
+    lag: tuple[float, float] = (0.04, 0.15)
+    friction: tuple[float, float] = (0.6, 1.4)
+    ir_std: tuple[float, float] = (0.005, 0.04)
+    ir_dropout: tuple[float, float] = (0.0, 0.06)
+    bearing_deg: tuple[float, float] = (1.0, 8.0)
+    distance_rel: tuple[float, float] = (0.03, 0.2)
+    miss: tuple[float, float] = (0.02, 0.2)
+
+
+#: Named spreads: ``typical`` (robots within about 15 % of the model: the recovery study's) and
+#: ``worn`` (a worn or mis-built robot: weak, unequal wheels, sluggish motors, slippery tyres).
+SPREADS = {
+    "typical": HardwareSpread(),
+    "worn": HardwareSpread(gain=(0.5, 0.85), lag=(0.15, 0.3), friction=(0.4, 1.0)),
+}
+
+
+def true_robot(seed: int, n_robots: int = 3, spread: str = "typical") -> TrueRobot:
+    """A hidden hardware drawn from ``seed`` within the ranges of ``SPREADS[spread]``
+    (``typical``: gains U[0.75, 1.15] per wheel, motor lag U[0.04, 0.15] s, friction factor
+    U[0.6, 1.4], IR noise U[0.005, 0.04] m with dropout U[0, 0.06], camera bearing U[1, 8] deg,
+    distance U[0.03, 0.2], miss rate U[0.02, 0.2])."""
+    s = SPREADS[spread]
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x7E57]))
     drives = np.column_stack(
         [
-            rng.uniform(0.75, 1.15, size=(n_robots, 2)),
-            rng.uniform(0.04, 0.15, size=n_robots),
-            rng.uniform(0.6, 1.4, size=n_robots),
+            rng.uniform(*s.gain, size=(n_robots, 2)),
+            rng.uniform(*s.lag, size=n_robots),
+            rng.uniform(*s.friction, size=n_robots),
         ]
     )
-    ranges = RangeNoise(std=float(rng.uniform(0.005, 0.04)), dropout=float(rng.uniform(0, 0.06)))
+    ranges = RangeNoise(
+        std=float(rng.uniform(*s.ir_std)), dropout=float(rng.uniform(*s.ir_dropout))
+    )
     vision = VisionUncertainty(
-        bearing_std_deg=float(rng.uniform(1, 8)),
-        distance_rel_std=float(rng.uniform(0.03, 0.2)),
-        dropout=float(rng.uniform(0.02, 0.2)),
+        bearing_std_deg=float(rng.uniform(*s.bearing_deg)),
+        distance_rel_std=float(rng.uniform(*s.distance_rel)),
+        dropout=float(rng.uniform(*s.miss)),
     )
     return TrueRobot(drives, ranges, vision)
 
@@ -163,21 +222,8 @@ def simulate_log(
                 row["yaw"] = (yaw + math.pi) % (2 * math.pi) - math.pi
             else:
                 row["x"] = row["y"] = row["yaw"] = math.nan
-            for i in range(ranges.shape[1]):
-                row[f"ir{i}"] = ranges[r, i]
+            row.update(sensor_columns(ranges, frame, r))
             row["led"] = float(led[r])
-            areas = {c: math.nan for c in range(3)}
-            for blob in frame.blobs[r] if frame.blobs else []:
-                if abs(blob.distance - frame.distance[r, blob.cls]) < 1e-12:
-                    areas[blob.cls] = blob.area
-            for c, name in enumerate(CAMERA_CLASSES):
-                seen = bool(frame.visible[r, c])
-                row[f"cam_{name}_seen"] = float(seen)
-                row[f"cam_{name}_bearing"] = float(frame.bearing[r, c]) if seen else math.nan
-                row[f"cam_{name}_distance"] = float(frame.distance[r, c]) if seen else math.nan
-                row[f"cam_{name}_area"] = (
-                    areas[c] if seen and not math.isnan(areas[c]) else (0.0 if seen else math.nan)
-                )
             rows.append(row)
         if rng.random() < 0.05:
             led = rng.random(n) < 0.5
@@ -188,4 +234,12 @@ def simulate_log(
     return pd.DataFrame(rows), world.config.field_size, world.pack_positions()
 
 
-__all__ = ["LogFaults", "TrueRobot", "simulate_log", "true_robot"]
+__all__ = [
+    "SPREADS",
+    "HardwareSpread",
+    "LogFaults",
+    "TrueRobot",
+    "sensor_columns",
+    "simulate_log",
+    "true_robot",
+]

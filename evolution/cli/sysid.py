@@ -14,15 +14,20 @@ HELP = "fit the hardware profile (drive, IR and camera noise) to a robot's run l
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.description = (
         "Replay the logged wheel commands in MuJoCo and fit each robot's wheel gains, motor "
-        "lag and friction; fit the IR and camera noise at the logged poses; bootstrap the "
-        "uncertainties over log segments. Writes a profile file that --profile accepts "
-        "(train-behaviours, evolve, transfer). Log format: docs/robots.md."
+        "lag and friction; fit the IR and camera noise at the logged poses; estimate each "
+        "value's error by refitting on resampled log segments and on re-simulations of the "
+        "logs with the fitted values (docs/robots.md). Writes a profile file that --profile "
+        "accepts (train-behaviours, evolve, transfer). Log format: docs/robots.md."
     )
     parser.add_argument("logs", nargs="+", metavar="LOG", help="run logs (CSV)")
     parser.add_argument("--out", required=True, metavar="PROFILE", help="profile file to write")
     parser.add_argument(
         "--bootstrap", type=int_arg("--bootstrap"), default=20, help="bootstrap resamples"
     )
+    parser.add_argument(
+        "--replicates", type=int_arg("--replicates"), default=8,
+        help="re-simulations of the logs for the error model (0: segment bootstrap only)",
+    )  # fmt: skip
     parser.add_argument(
         "--segment", type=float, default=10.0, help="segment length, s (default 10)"
     )
@@ -39,7 +44,7 @@ def config_from(args: argparse.Namespace):  # type: ignore[no-untyped-def]
     try:
         return SysidConfig(
             segment_s=args.segment, holdout_every=args.holdout_every,
-            bootstrap=args.bootstrap, seed=args.seed,
+            bootstrap=args.bootstrap, seed=args.seed, replicates=args.replicates,
         )  # fmt: skip
     except ValueError as err:
         text = str(err).replace("sysid.segment_s", "--segment").replace("sysid.", "--")
@@ -60,7 +65,10 @@ def run(args: argparse.Namespace) -> int:
     provenance = {
         "logs": [str(p) for p in args.logs],
         "sysid": dataclasses.asdict(config),
-        "parameters": {k: {"value": v, "se": s} for k, (v, s) in result.parameters.items()},
+        "parameters": {
+            k: {"value": v, "se": s, **dataclasses.asdict(result.errors[k])}
+            for k, (v, s) in result.parameters.items()
+        },
         "held_out": result.held_out,
     }
     save_profile(out, result.profile, provenance)
