@@ -222,3 +222,23 @@ def test_sysid_end_to_end_reports_every_error_part(short_log) -> None:  # type: 
                                              + e.replicate_bias**2))  # fmt: skip
     assert result.profile.actuators is not None
     assert result.profile.actuators.wheel_gain_sd[0][0] == result.parameters["robot0.gain_left"][1]
+
+
+def test_clock_noise_is_the_spread_of_one_steps_stamps(tmp_path: Path) -> None:
+    """Three robots stamp each step with independent N(0, 4 ms) errors about a shared time: the
+    spread about each step's median, times sqrt(3/2), reads 4 ms back; one robot reads none."""
+    from cyber_rodent.sysid.errors import clock_noise
+    from cyber_rodent.sysid.replay import Replayer
+
+    rng = np.random.default_rng(3)
+    steps = 600
+    parts = []
+    for robot in range(3):
+        t = _table(steps)
+        t["robot"] = robot
+        t["t"] = 1.0 + 0.2 * np.arange(steps) + rng.normal(0, 0.004, steps)
+        parts.append(t)
+    log = read_log(_write(tmp_path, pd.concat(parts, ignore_index=True)))
+    assert clock_noise([Replayer(log)]) == pytest.approx(0.004, rel=0.1)
+    single = read_log(write_log(tmp_path / "one.csv", parts[0], 2.3, np.zeros((0, 2))))
+    assert clock_noise([Replayer(single)]) == 0.0

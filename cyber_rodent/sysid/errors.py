@@ -9,23 +9,27 @@ all. So the fit's error is also estimated by simulation:
   robust spread of first differences of logged minus replayed wheel speeds, / sqrt 2), their
   glitches (residuals beyond 6 of those standard deviations and 0.2 m/s: their share and
   sizes), and the tracker's position and heading noise (robust spread of second differences,
-  / sqrt 6; smooth drift of the replay cancels out of both differences).
+  / sqrt 6; smooth drift of the replay cancels out of both differences). The time stamps'
+  noise comes from the robots' rows of one step: their spread about the step's mean
+  (robust, times sqrt(n / (n - 1)) for n robots); one robot, or a shared clock, shows none.
 * **A replicate** (:func:`replicate`) re-runs the log in a world with all its robots and packs,
   with the fitted drives, IR and camera noise, each robot driven by its logged commands for
   the logged step lengths. At the first row of each of its segments a robot is put back in
   the state the log records there (:func:`~cyber_rodent.sysid.replay.set_start_state`), so the
   replicate follows the log's paths and meets the walls and robots the log met. It records
   what the log records, with that noise, the log's own dropped tracker frames, and every
-  other column (time stamps, commands, LED, events) as logged.
+  other column (commands, LED, events) as logged. A step lasts as long as the mean of its
+  robots' logged stamps says; each row's time stamp is that time plus the clock noise.
 * The fit is repeated on every replicate, from its usual start; the refits' spread and their
   bias about the fitted values (the truth of the replicates) are the fit's simulated error.
 
-Not in it: clock error (one clock per robot cannot show it), and any way the robot differs
-from the model beyond the fitted parameters.
+Not in it: the noise of a clock a log cannot show (one robot's only), and any way the robot
+differs from the model beyond the fitted parameters.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -57,6 +61,7 @@ class LogNoise:
         glitches: m/s, the glitches' sizes seen (drawn from when a replicate glitches).
         tracker_std: m, the tracker's position noise.
         tracker_yaw_std: rad, its heading noise.
+        clock_std: s, the time stamps' noise.
     """
 
     encoder_std: float = 0.0
@@ -64,6 +69,7 @@ class LogNoise:
     glitches: tuple[float, ...] = ()
     tracker_std: float = 0.0
     tracker_yaw_std: float = 0.0
+    clock_std: float = 0.0
 
 
 def _robust_sd(x: np.ndarray) -> float:
@@ -95,20 +101,36 @@ def log_noise(
                 d2[:, 2] = wrap_angle(d2[:, 2])
                 pos_d2.append(d2[triple, :2].ravel())
                 yaw_d2.append(d2[triple, 2])
-    out = LogNoise()
+    out = LogNoise(clock_std=clock_noise(replayers))
     if wheel_res:
         sd = _robust_sd(np.concatenate(wheel_d1)) / math.sqrt(2)
         res = np.concatenate(wheel_res)
         dev = res - np.median(res)
         glitch = np.abs(dev) > max(GLITCH_SDS * sd, GLITCH_MIN)
-        out = LogNoise(sd, float(glitch.mean()), tuple(map(float, dev[glitch])))
+        out = dataclasses.replace(out, encoder_std=sd, glitch_rate=float(glitch.mean()),
+                                  glitches=tuple(map(float, dev[glitch])))  # fmt: skip
     if pos_d2:
-        out = LogNoise(
-            out.encoder_std, out.glitch_rate, out.glitches,
-            _robust_sd(np.concatenate(pos_d2)) / math.sqrt(6),
-            _robust_sd(np.concatenate(yaw_d2)) / math.sqrt(6),
+        out = dataclasses.replace(
+            out, tracker_std=_robust_sd(np.concatenate(pos_d2)) / math.sqrt(6),
+            tracker_yaw_std=_robust_sd(np.concatenate(yaw_d2)) / math.sqrt(6),
         )  # fmt: skip
     return out
+
+
+def clock_noise(replayers: list[Replayer]) -> float:
+    """The time stamps' noise, from the spread of the robots' stamps of one step about their
+    mean (module docstring), over the logs of ``replayers``."""
+    devs = []
+    for replayer in replayers:
+        table = replayer.log.table
+        counts = table.groupby("step")["t"].transform("size").to_numpy()
+        n = int(counts.max()) if len(counts) else 0
+        if n < 2:
+            continue
+        full = counts == n
+        mean = table.groupby("step")["t"].transform("mean").to_numpy()
+        devs.append((table["t"].to_numpy() - mean)[full] * math.sqrt(n / (n - 1)))
+    return _robust_sd(np.concatenate(devs)) if devs else 0.0
 
 
 def replicate(
@@ -140,6 +162,8 @@ def replicate(
     ir_noise = RangeSensorNoise(range_noise, world.range_max, rng)
     provider = make_provider("geometric", world, CameraConfig(noise=vision.noise()), rng)
     out = table.copy()
+    true_t = {int(step): float(np.mean(rows["t"].to_numpy()))
+              for step, rows in table.groupby("step")}  # fmt: skip
     empty = {c for c in out.columns if c.endswith("_area") and bool(table[c].isna().all())}
     flags = {c for c in out.columns if out[c].dtype == bool}
     by_step = {int(s): rows for s, rows in table.groupby("step")}
@@ -171,6 +195,8 @@ def replicate(
                 continue
             idx = present[robot]
             cmd[i] = table.loc[idx, ["cmd_left", "cmd_right"]].to_numpy(dtype=float)
+            if noise.clock_std > 0:
+                out.at[idx, "t"] = true_t[step] + rng.normal(0.0, noise.clock_std)
             if "wheel_left" in table:
                 value = wheels[i] + rng.normal(0.0, noise.encoder_std, size=2)
                 glitch = rng.random(2) < noise.glitch_rate
@@ -186,8 +212,7 @@ def replicate(
                     out.at[idx, name] = bool(value) if name in flags else value
         if k + 1 == len(steps):
             break
-        nxt = by_step[steps[k + 1]]
-        dt = float(np.median(nxt["t"].to_numpy()) - np.median(rows["t"].to_numpy()))
+        dt = true_t[steps[k + 1]] - true_t[step]
         world.set_wheel_speeds(cmd[:, 0], cmd[:, 1])
         world.step(max(1, round(dt / timestep)))
     return RunLog(log.path, out, log.field_size, log.packs)

@@ -143,6 +143,7 @@ class Replayer:
             field_size=log.field_size, n_robots=1, n_packs=len(log.packs), timestep=timestep,
             pack_gap=0.0, pack_wall_clearance=0.0,
         )  # fmt: skip
+        self.log = log
         self.world = World(config)
         for j, (x, y) in enumerate(log.packs):
             self.world.set_pack_position(j, float(x), float(y))
