@@ -162,11 +162,10 @@ def replicate(
     ir_noise = RangeSensorNoise(range_noise, world.range_max, rng)
     provider = make_provider("geometric", world, CameraConfig(noise=vision.noise()), rng)
     out = table.copy()
-    true_t = {int(step): float(np.mean(rows["t"].to_numpy()))
-              for step, rows in table.groupby("step")}  # fmt: skip
     empty = {c for c in out.columns if c.endswith("_area") and bool(table[c].isna().all())}
     flags = {c for c in out.columns if out[c].dtype == bool}
     by_step = {int(s): rows for s, rows in table.groupby("step")}
+    true_t = {step: float(np.mean(rows["t"].to_numpy())) for step, rows in by_step.items()}
     begun: set[int] = set()
     steps = sorted(by_step)
     for k, step in enumerate(steps):
