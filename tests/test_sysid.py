@@ -242,3 +242,43 @@ def test_clock_noise_is_the_spread_of_one_steps_stamps(tmp_path: Path) -> None:
     assert clock_noise([Replayer(log)]) == pytest.approx(0.004, rel=0.1)
     single = read_log(write_log(tmp_path / "one.csv", parts[0], 2.3, np.zeros((0, 2))))
     assert clock_noise([Replayer(single)]) == 0.0
+
+
+class _TwoBasins:
+    """A replayer whose one wheel-speed residual is sqrt(E) for a drive error E with a shallow
+    basin (E = 1) at the model's gains and a long lag, and the truth (E = 0) in a narrower
+    basin at weak gains and a shorter lag, between the scan's points."""
+
+    shallow = np.array([1.0, 1.0, 0.4, 1.0])
+    deep = np.array([0.7, 0.7, 0.2, 1.0])
+
+    def error(self, drive: np.ndarray) -> float:
+        wide = np.sum(((drive - self.shallow) / np.array([0.6, 0.6, 0.3, 1.0])) ** 2)
+        narrow = np.sum(((drive - self.deep) / np.array([0.15, 0.15, 0.1, 0.5])) ** 2)
+        return float(min(1.0 + wide, narrow))
+
+    def run(self, segment: object, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        speeds = np.array([[0.0, 0.0], [math.sqrt(self.error(drive)) * 0.02, 0.0]])
+        return speeds, np.zeros((2, 3))
+
+
+def test_fit_drive_searches_from_several_scanned_starts() -> None:
+    """Hand-built: the best scanned start, gains 1.0 and lag 0.4 s (E = 1), lies in the shallow
+    basin; the next are the truth's four neighbours (gains 0.6 or 0.8, lag 0.15 or 0.25 s:
+    E = 2 (0.1 / 0.15)² + (0.05 / 0.1)² = 1.14). One search stays in the shallow basin; three
+    find the truth."""
+    from types import SimpleNamespace
+
+    from cyber_rodent.sysid.fit import SysidConfig, fit_drive
+
+    landscape = _TwoBasins()
+    zeros = pd.DataFrame({"wheel_left": [0.0, 0.0], "wheel_right": [0.0, 0.0]})
+    segs = [(0, SimpleNamespace(rows=zeros))]
+    one = fit_drive([landscape], segs, SysidConfig(starts=1))  # type: ignore[list-item,arg-type]
+    three = fit_drive([landscape], segs, SysidConfig(starts=3))  # type: ignore[list-item,arg-type]
+    neighbour = 2 * (0.1 / 0.15) ** 2 + (0.05 / 0.1) ** 2
+    assert landscape.error(np.array([0.8, 0.8, 0.15, 1.0])) == pytest.approx(neighbour)
+    assert np.allclose(one, landscape.shallow, atol=0.02)
+    assert landscape.error(one) == pytest.approx(1.0, abs=1e-3)
+    assert np.allclose(three, landscape.deep, atol=0.02)
+    assert landscape.error(three) < 1e-3

@@ -29,6 +29,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="re-simulations of the logs for the error model (0: segment bootstrap only)",
     )  # fmt: skip
     parser.add_argument(
+        "--starts", type=int_arg("--starts"), default=3,
+        help="searches per drive fit, from the best scanned gains and motor lags (1-24)",
+    )  # fmt: skip
+    parser.add_argument(
         "--segment", type=float, default=10.0, help="segment length, s (default 10)"
     )
     parser.add_argument(
@@ -45,6 +49,7 @@ def config_from(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         return SysidConfig(
             segment_s=args.segment, holdout_every=args.holdout_every,
             bootstrap=args.bootstrap, seed=args.seed, replicates=args.replicates,
+            starts=args.starts,
         )  # fmt: skip
     except ValueError as err:
         text = str(err).replace("sysid.segment_s", "--segment").replace("sysid.", "--")
