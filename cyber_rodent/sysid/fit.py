@@ -77,7 +77,7 @@ class SysidConfig:
         wheel_sd: m/s, scale of a wheel-speed residual (about the encoders' noise); default 0.02.
         pose_sd: m, scale of a position residual; default 0.02.
         yaw_sd_deg: degrees, scale of a heading residual; default 3.
-        max_evals: replays allowed to the full fit of one robot; default 200.
+        max_evals: replays allowed to each search of a full fit of one robot; default 200.
         bootstrap_evals: replays allowed to each bootstrap refit (warm-started); default 30.
         starts: a fresh fit searches from this many of the best scanned starts
             (:func:`fit_drive`), each with ``max_evals`` replays; default 3.
