@@ -6,8 +6,8 @@
   segment's first, summed under a soft-L1 loss (``2 (sqrt(1 + (r/2)^2) - 1)``), so encoder
   glitches and collisions with robots the replay lacks weigh little, by scipy's bounded
   Nelder-Mead (derivative-free: contacts make the replay's error non-smooth, and a
-  finite-difference trust-region method stalled at its start).
-  Dropped tracker frames contribute nothing.
+  finite-difference trust-region method stalled at its start), from the best few of a scan
+  of gains and motor lags (:func:`fit_drive`). Dropped tracker frames contribute nothing.
 * **IR noise**: at every step where every robot's pose is known, the world is posed as logged
   and the noise-free readings computed; std and dropout maximise the likelihood of the logged
   readings under the profile's model (Gaussian, clipped to [0, range], a dropout reads the full
