@@ -61,6 +61,7 @@ import numpy as np
 import cyber_rodent.world as world_module
 from cyber_rodent import constants as C
 from cyber_rodent.robot import RobotParts, robot_model
+from cyber_rodent.survival.watchdog import Watchdog
 from cyber_rodent.world import World, WorldConfig
 
 SPEEDS = (0.2, 0.4, 0.6, 0.8, 1.0, 1.3)  # m/s, rim speed of both wheels of both robots
@@ -758,7 +759,10 @@ def stress(
     5 s (5-10 s, 15-20 s, ...) all robots steer to the field's centre at 1.2 m/s. Counts the
     robots' tips past 60 deg (each crossing from above 0.5 uprightness to below it) and the
     robots that are upside down at the end (``centre_first``: the centre phases are 0-5 s,
-    10-15 s, ...). ``trace``: replay the first ``trace`` tips' last
+    10-15 s, ...). The runner's watchdog (:class:`~cyber_rodent.survival.watchdog.Watchdog`,
+    the paper's rules, every robot taken as running an agent, none docked) watches the scene
+    too: its tips and stuck spells, their robot-steps and the longest of each.
+    ``trace``: replay the first ``trace`` tips' last
     second substep by substep and keep the tipping robot's contacts."""
     cfg = WorldConfig(field_size=11.5, n_robots=100, n_packs=125)
     world = make_world(variant, cfg)
@@ -778,6 +782,9 @@ def stress(
     state = np.empty(mujoco.mj_stateSize(world.model, spec))
     steps = round(seconds / 0.2)
     tally = LiftTally(world)
+    wheels = np.zeros((n, 2))
+    watchdog = Watchdog(world, wheels, np.zeros(n, dtype=bool), np.zeros(n, dtype=np.int64))
+    watched: dict[str, list[int]] = {"tipped": [], "stuck": []}
     t0 = time.perf_counter()
     for k in range(steps):
         t = k * 0.2
@@ -792,9 +799,10 @@ def stress(
             b = robot_model().half_wheel_base
             cmd_l, cmd_r = 1.2 - w * b, 1.2 + w * b
             scale = np.maximum(1.0, np.maximum(np.abs(cmd_l), np.abs(cmd_r)) / 1.2)
-            world.set_wheel_speeds(cmd_l / scale, cmd_r / scale)
+            wheels[:, 0], wheels[:, 1] = cmd_l / scale, cmd_r / scale
         else:
-            world.set_wheel_speeds(left, right)
+            wheels[:, 0], wheels[:, 1] = left, right
+        world.set_wheel_speeds(wheels[:, 0], wheels[:, 1])
         if trace:
             mujoco.mj_getState(world.model, world.data, state, spec)
             history.append((state.copy(), world.data.ctrl.copy()))
@@ -816,6 +824,10 @@ def stress(
                 )
         tips += int(new.sum())
         tipped = up < 0.5
+        seen = watchdog.observe()
+        if seen is not None:
+            watched["tipped"] += [lasted for _, lasted in seen.tip_ended]
+            watched["stuck"] += [lasted for _, lasted in seen.stuck_ended]
         if report_every and (k + 1) % round(report_every / 0.2) == 0:
             print(
                 f"  [{variant.name}] t={world.time:6.1f} s tips={tips} "
@@ -825,6 +837,13 @@ def stress(
             )
     up = world.uprightness()
     robot_hours = n * seconds / 3600
+    open_spells = {"tipped": watchdog.state.tipped_steps, "stuck": watchdog.state.stuck_steps}
+    for kind, running in open_spells.items():
+        watched[kind] += [int(x) for x in running if x > 0]
+    watch = {f"watchdog_{kind}": {"spells": len(spells), "robot_steps": int(sum(spells)),
+                                  "longest_steps": max(spells, default=0),
+                                  "per_robot_hour": len(spells) / robot_hours}
+             for kind, spells in watched.items()}  # fmt: skip
     return {
         "variant": variant.name,
         "seconds": seconds,
@@ -836,6 +855,7 @@ def stress(
         "robot_hours": robot_hours,
         "tips_per_robot_hour": tips / robot_hours,
         "tips": tip_log,
+        **watch,
         **tally.as_dict(),
         "wall_s": round(time.perf_counter() - t0, 1),
         "traces": traces,

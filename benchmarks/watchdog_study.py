@@ -6,7 +6,11 @@ counts the watchdog's events (``tipped``, ``stuck``, their ends and ``rescue``;
 
 - robot-hours simulated (control steps x robots x the control step's seconds / 3600);
 - tips and jams that began, per robot-hour, and how long they lasted (median and longest, in
-  control steps; a trouble still going on at the run's end counts to the end);
+  control steps; a trouble still going on at the run's end counts to the end). A robot that is
+  let go for a step and held again is a new spell to the watchdog, which needs its 25-step
+  window to flag it again; for the counts and durations, spells of one robot separated by fewer
+  than ``--merge-gap`` steps (50, twice that window) are one trouble. The spells are counted
+  too (``*_spells``), with the share of robot time spent in them (``*_share``);
 - the robots concerned;
 - whether the run replays its published table: ``--published DIR`` compares each run's
   ``statistics.csv`` with ``DIR/<run>/statistics.csv``, byte for byte over the generations
@@ -16,7 +20,7 @@ counts the watchdog's events (``tipped``, ``stuck``, their ends and ``rescue``;
   ``statistics_per_robot.csv``) and, for each, whether it was tipped or stuck during them.
 
 Run: ``python -m benchmarks.watchdog_study ROOT [ROOT ...] [--published DIR] [--lagging
-40-59] [--out results/watchdog]``.
+40-59] [--merge-gap 50] [--out results/watchdog]``.
 """
 
 from __future__ import annotations
@@ -59,8 +63,26 @@ def episodes(events: pd.DataFrame, start: str, end: str, last_step: int) -> pd.D
     return pd.DataFrame(rows, columns=["robot", "step", "steps"])
 
 
-def summarise_run(path: Path, published: Path | None, lagging: tuple[int, int] | None
-                  ) -> dict[str, Any]:  # fmt: skip
+def merged(spells: pd.DataFrame, gap: int) -> pd.DataFrame:
+    """The spells with those of one robot less than ``gap`` steps apart joined into one row,
+    which lasts from the first spell's start to the last one's end."""
+    rows = []
+    for robot, group in spells.sort_values(["robot", "step"]).groupby("robot"):
+        start = end = None
+        for step, steps in group[["step", "steps"]].itertuples(index=False):
+            if start is not None and end is not None and step - end < gap:
+                end = max(end, int(step) + int(steps))
+                continue
+            if start is not None and end is not None:
+                rows.append((int(robot), start, end - start))
+            start, end = int(step), int(step) + int(steps)
+        if start is not None and end is not None:
+            rows.append((int(robot), start, end - start))
+    return pd.DataFrame(rows, columns=["robot", "step", "steps"])
+
+
+def summarise_run(path: Path, published: Path | None, lagging: tuple[int, int] | None,
+                  merge_gap: int = 50) -> dict[str, Any]:  # fmt: skip
     record = json.loads((path / "run.json").read_text())
     config = record["config"]
     n = int(config["world"]["n_robots"])
@@ -74,7 +96,11 @@ def summarise_run(path: Path, published: Path | None, lagging: tuple[int, int] |
         "robot_hours": round(hours, 2), "commit": record["versions"].get("git_commit"),
     }  # fmt: skip
     for name, start, end in TROUBLES:
-        found = episodes(events, start, end, steps)
+        spells = episodes(events, start, end, steps)
+        found = merged(spells, merge_gap)
+        row[f"{name}_spells"] = len(spells)
+        share = float(spells["steps"].sum()) / (steps * n) if steps else 0.0
+        row[f"{name}_share"] = round(share, 5)
         row[f"{name}s"] = len(found)
         row[f"{name}s_per_robot_hour"] = round(len(found) / hours, 4) if hours else float("nan")
         row[f"{name}_median_steps"] = float(found["steps"].median()) if len(found) else 0.0
@@ -129,8 +155,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("roots", nargs="+", type=Path, help="sweep or run directories")
     parser.add_argument("--published", type=Path, help="the published tables to compare with")
     parser.add_argument("--lagging", help="generations G0-G1 of the lagging-robots check")
+    parser.add_argument("--merge-gap", type=int, default=50,
+                        help="spells of one robot fewer than this many steps apart are one trouble")
     parser.add_argument("--out", type=Path, help="write watchdog_runs.csv here")
     args = parser.parse_args(argv)
+    if args.merge_gap < 1:
+        print(f"{parser.prog}: --merge-gap must be an integer >= 1, got {args.merge_gap}",
+              file=sys.stderr)  # fmt: skip
+        return 2
     lagging = None
     if args.lagging:
         try:
@@ -142,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for root in args.roots:
         for path in run_dirs(root):
-            row = summarise_run(path, args.published, lagging)
+            row = summarise_run(path, args.published, lagging, args.merge_gap)
             row["setting"] = root.name
             rows.append(row)
     if not rows:
@@ -151,9 +183,13 @@ def main(argv: list[str] | None = None) -> int:
     table = pd.DataFrame(rows)
     with pd.option_context("display.width", 200, "display.max_columns", 40):
         print(table.to_string(index=False))
-    totals = table.groupby("setting")[["robot_hours", "tips", "jams", "rescues"]].sum()
+    columns = ["robot_hours", "tips", "jams", "tip_spells", "jam_spells", "rescues"]
+    totals = table.groupby("setting")[columns].sum()
     totals["tips_per_robot_hour"] = totals["tips"] / totals["robot_hours"]
     totals["jams_per_robot_hour"] = totals["jams"] / totals["robot_hours"]
+    for name in ("tip", "jam"):
+        weighted = table[f"{name}_share"] * table["robot_hours"]
+        totals[f"{name}_share"] = weighted.groupby(table["setting"]).sum() / totals["robot_hours"]
     print(totals.to_string())
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)

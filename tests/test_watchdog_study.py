@@ -1,0 +1,28 @@
+"""The watchdog study's counting, on hand-built event logs."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from benchmarks.watchdog_study import episodes, merged
+
+
+def _events(rows: list[tuple[int, int, str, int]]) -> pd.DataFrame:
+    return pd.DataFrame(rows, columns=["step", "robot", "kind", "value"])
+
+
+def test_spells_close_at_their_end_event_or_at_the_run_end() -> None:
+    events = _events([(100, 0, "stuck", 0), (130, 0, "stuck_end", 30), (500, 1, "stuck", 0)])
+    found = episodes(events, "stuck", "stuck_end", last_step=999)
+    assert found.values.tolist() == [[0, 100, 30], [1, 500, 500]]
+
+
+def test_spells_of_one_robot_closer_than_the_gap_are_one_trouble() -> None:
+    # Robot 0: 100-130, then 30 steps free (130-160), then 160-200: one trouble of 100 steps
+    # with a gap of 50, two with a gap of 30 (a gap of exactly 30 is not "fewer than 30").
+    # Robot 1 is 10 steps from robot 0's spell but is another robot: never joined.
+    spells = pd.DataFrame([(0, 100, 30), (0, 160, 40), (1, 140, 5)],
+                          columns=["robot", "step", "steps"])  # fmt: skip
+    assert merged(spells, 50).values.tolist() == [[0, 100, 100], [1, 140, 5]]
+    assert merged(spells, 30).values.tolist() == [[0, 100, 30], [0, 160, 40], [1, 140, 5]]
+    assert merged(spells.iloc[:0], 50).empty
