@@ -10,7 +10,10 @@ counts the watchdog's events (``tipped``, ``stuck``, their ends and ``rescue``;
   let go for a step and held again is a new spell to the watchdog, which needs its 25-step
   window to flag it again; for the counts and durations, spells of one robot separated by fewer
   than ``--merge-gap`` steps (50, twice that window) are one trouble. The spells are counted
-  too (``*_spells``), with the share of robot time spent in them (``*_share``);
+  too (``*_spells``), with the share of robot time spent in them (``*_share``) and, with
+  ``--window G0-G1``, that share within the window's generations alone (``*_share_window``:
+  the steps of each spell between the close of generation G0 - 1 and that of G1), the
+  generations a published figure reports;
 - the robots concerned;
 - whether the run replays its published table: ``--published DIR`` compares each run's
   ``statistics.csv`` with ``DIR/<run>/statistics.csv``, byte for byte over the generations
@@ -20,7 +23,7 @@ counts the watchdog's events (``tipped``, ``stuck``, their ends and ``rescue``;
   ``statistics_per_robot.csv``) and, for each, whether it was tipped or stuck during them.
 
 Run: ``python -m benchmarks.watchdog_study ROOT [ROOT ...] [--published DIR] [--lagging
-40-59] [--merge-gap 50] [--out results/watchdog]``.
+40-59] [--window 100-119] [--merge-gap 50] [--out results/watchdog]``.
 """
 
 from __future__ import annotations
@@ -81,8 +84,27 @@ def merged(spells: pd.DataFrame, gap: int) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["robot", "step", "steps"])
 
 
+def window_steps(path: Path, window: tuple[int, int]) -> tuple[int, int]:
+    """The control steps (after ``begin``, up to ``end``) of generations G0..G1 of a run."""
+    closed = pd.read_csv(path / "statistics.csv")["closed_at_step"].tolist()
+    first, last = window
+    begin = closed[first - 1] if 0 < first <= len(closed) else 0
+    return begin, closed[min(last, len(closed) - 1)]
+
+
+def share_within(spells: pd.DataFrame, begin: int, end: int, robots: int) -> float:
+    """The share of the robot-steps after ``begin`` up to ``end`` that the spells cover."""
+    if end <= begin:
+        return float("nan")
+    starts = spells["step"].to_numpy()
+    ends = starts + spells["steps"].to_numpy()
+    covered = np.clip(np.minimum(ends, end + 1) - np.maximum(starts, begin + 1), 0, None)
+    return float(covered.sum()) / ((end - begin) * robots)
+
+
 def summarise_run(path: Path, published: Path | None, lagging: tuple[int, int] | None,
-                  merge_gap: int = 50) -> dict[str, Any]:  # fmt: skip
+                  merge_gap: int = 50, window: tuple[int, int] | None = None
+                  ) -> dict[str, Any]:  # fmt: skip
     record = json.loads((path / "run.json").read_text())
     config = record["config"]
     n = int(config["world"]["n_robots"])
@@ -101,6 +123,9 @@ def summarise_run(path: Path, published: Path | None, lagging: tuple[int, int] |
         row[f"{name}_spells"] = len(spells)
         share = float(spells["steps"].sum()) / (steps * n) if steps else 0.0
         row[f"{name}_share"] = round(share, 5)
+        if window is not None:
+            within = share_within(spells, *window_steps(path, window), n)
+            row[f"{name}_share_window"] = round(within, 5)
         row[f"{name}s"] = len(found)
         row[f"{name}s_per_robot_hour"] = round(len(found) / hours, 4) if hours else float("nan")
         row[f"{name}_median_steps"] = float(found["steps"].median()) if len(found) else 0.0
@@ -110,7 +135,7 @@ def summarise_run(path: Path, published: Path | None, lagging: tuple[int, int] |
     if published is not None:
         row["replays_published"] = replays(path, published / path.name)
     if lagging is not None:
-        row.update(lagging_robots(path, events, lagging))
+        row.update(lagging_robots(path, events, lagging, steps))
     return row
 
 
@@ -126,25 +151,28 @@ def replays(path: Path, published: Path) -> str:
     return "yes" if common > 1 and ours_lines[:common] == their_lines[:common] else "no"
 
 
-def lagging_robots(path: Path, events: pd.DataFrame, window: tuple[int, int]) -> dict[str, Any]:
+def lagging_robots(path: Path, events: pd.DataFrame, window: tuple[int, int],
+                   last_step: int) -> dict[str, Any]:  # fmt: skip
     """The robots that completed a life in at most 2 of the window's generations, and the
-    watchdog's troubles of each within the window's steps."""
+    watchdog's troubles of each within the window's steps: ``robot:<tips>t<jams>j<share>%``,
+    the tips and stuck spells that began in the window and the share of its steps the robot
+    spent tipped or stuck."""
     per_robot = pd.read_csv(path / "statistics_per_robot.csv")
     first, last = window
     inside = per_robot[(per_robot["generation"] >= first) & (per_robot["generation"] <= last)]
     taking_part = inside[inside["full_lifetimes"] > 0].groupby("robot")["generation"].nunique()
     robots = sorted(set(per_robot["robot"]))
     lagging = [r for r in robots if int(taking_part.get(r, 0)) <= 2]
-    closed = pd.read_csv(path / "statistics.csv")["closed_at_step"].tolist()
-    begin = closed[first - 1] if first > 0 else 0
-    end = closed[min(last, len(closed) - 1)]
+    begin, end = window_steps(path, window)
     window_events = events[(events["step"] > begin) & (events["step"] <= end)]
+    spells = pd.concat([episodes(events, start, stop, last_step) for _, start, stop in TROUBLES])
     troubled = []
     for robot in lagging:
         mine = window_events[window_events["robot"] == robot]
         tips = int((mine["kind"] == "tipped").sum())
         jams = int((mine["kind"] == "stuck").sum())
-        troubled.append(f"{robot}:{tips}t{jams}j")
+        held = share_within(spells[spells["robot"] == robot], begin, end, 1)
+        troubled.append(f"{robot}:{tips}t{jams}j{100 * held:.0f}%")
     return {"lagging_robots": len(lagging), "lagging_troubles": " ".join(troubled) or "-",
             "median_generations_taken_part": float(np.median(
                 [int(taking_part.get(r, 0)) for r in robots]))}  # fmt: skip
@@ -155,6 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("roots", nargs="+", type=Path, help="sweep or run directories")
     parser.add_argument("--published", type=Path, help="the published tables to compare with")
     parser.add_argument("--lagging", help="generations G0-G1 of the lagging-robots check")
+    parser.add_argument("--window", help="generations G0-G1 of the *_share_window columns")
     parser.add_argument("--merge-gap", type=int, default=50,
                         help="spells of one robot fewer than this many steps apart are one trouble")
     parser.add_argument("--out", type=Path, help="write watchdog_runs.csv here")
@@ -163,18 +192,23 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{parser.prog}: --merge-gap must be an integer >= 1, got {args.merge_gap}",
               file=sys.stderr)  # fmt: skip
         return 2
-    lagging = None
-    if args.lagging:
+    windows: dict[str, tuple[int, int] | None] = {}
+    for option in ("lagging", "window"):
+        text = getattr(args, option)
         try:
-            first, last = (int(x) for x in args.lagging.split("-"))
+            first, last = (int(x) for x in text.split("-")) if text else (0, 0)
         except ValueError:
-            print(f"{parser.prog}: --lagging must be G0-G1, got {args.lagging!r}", file=sys.stderr)
+            first = last = -1
+        if text and not 0 <= first <= last:
+            print(f"{parser.prog}: --{option} must be G0-G1 with 0 <= G0 <= G1, got {text!r}",
+                  file=sys.stderr)  # fmt: skip
             return 2
-        lagging = (first, last)
+        windows[option] = (first, last) if text else None
     rows = []
     for root in args.roots:
         for path in run_dirs(root):
-            row = summarise_run(path, args.published, lagging, args.merge_gap)
+            row = summarise_run(path, args.published, windows["lagging"], args.merge_gap,
+                                windows["window"])  # fmt: skip
             row["setting"] = root.name
             rows.append(row)
     if not rows:
@@ -190,6 +224,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("tip", "jam"):
         weighted = table[f"{name}_share"] * table["robot_hours"]
         totals[f"{name}_share"] = weighted.groupby(table["setting"]).sum() / totals["robot_hours"]
+        if f"{name}_share_window" in table:  # the runs' plain mean: windows differ in length
+            totals[f"{name}_share_window"] = table.groupby("setting")[f"{name}_share_window"].mean()
     print(totals.to_string())
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from benchmarks.watchdog_study import episodes, merged
+from benchmarks.watchdog_study import episodes, merged, share_within
 
 
 def _events(rows: list[tuple[int, int, str, int]]) -> pd.DataFrame:
@@ -26,3 +26,11 @@ def test_spells_of_one_robot_closer_than_the_gap_are_one_trouble() -> None:
     assert merged(spells, 50).values.tolist() == [[0, 100, 100], [1, 140, 5]]
     assert merged(spells, 30).values.tolist() == [[0, 100, 30], [0, 160, 40], [1, 140, 5]]
     assert merged(spells.iloc[:0], 50).empty
+
+
+def test_the_share_within_a_window_counts_only_its_steps() -> None:
+    # Steps 111..200 (after step 110, up to 200) for 2 robots: 180 robot-steps. Robot 0's spell
+    # covers steps 100..129, 19 of them inside; robot 1's covers 190..219, 11 inside.
+    spells = pd.DataFrame([(0, 100, 30), (1, 190, 30)], columns=["robot", "step", "steps"])
+    assert share_within(spells, 110, 200, robots=2) == (19 + 11) / 180
+    assert share_within(spells.iloc[:0], 110, 200, robots=2) == 0.0
