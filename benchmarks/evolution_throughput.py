@@ -9,9 +9,10 @@ from; the replay is checked to end in the runner's exact state), interleaved wit
 blocks so machine load affects both alike. Their ratio is the runner's overhead; the target is
 at most 1.25x. The time the loop spends inside its own ``mj_step`` calls is printed too.
 
-It also times the loop's own cost directly: each control step's physics is timed and
-subtracted, leaving what the runner adds (blocks of steps, minimum and median). It also
-projects the wall time of one 120-generation run on one core (120 generations x 25
+It also times the watchdog (tipped and stuck robots, docs/design.md §9.35) in place, as a share
+of the whole loop (budget: 5 %), and the loop's own cost directly: each control step's
+physics is timed and subtracted, leaving what the runner adds (blocks of steps, minimum and
+median). It also projects the wall time of one 120-generation run on one core (120 generations x 25
 agents x 400 steps = 1.2 M control steps if no agent dies; deaths lengthen EE runs, which need
 every slot to complete each generation), and profiles the loop with cProfile: where time goes by
 component, then the top functions.
@@ -28,6 +29,7 @@ import io
 import json
 import pstats
 import time
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -163,6 +165,31 @@ def outside_physics(runner: EvolutionRunner, steps: int, blocks: int = 8) -> lis
     return sorted(per_step)
 
 
+def watchdog_cost(runner: EvolutionRunner, steps: int) -> tuple[float, float]:
+    """Seconds per control step of the whole loop and of the watchdog in it (its
+    ``observe``, which runs once per step, timed in place) over ``steps`` steps."""
+    watchdog = runner.watchdog
+    observe = watchdog.observe
+    clock = time.perf_counter
+    spent = [0.0]
+
+    def timed() -> Any:
+        start = clock()
+        found = observe()
+        spent[0] += clock() - start
+        return found
+
+    watchdog.observe = timed  # type: ignore[method-assign]
+    try:
+        start = clock()
+        for _ in range(steps):
+            runner.step()
+        total = clock() - start
+    finally:
+        del watchdog.observe  # the class's method again
+    return total / steps, spent[0] / steps
+
+
 def profile(runner: EvolutionRunner, steps: int, top: int) -> tuple[list[tuple[str, float]], str]:
     """cProfile ``steps`` runner steps: component shares (of total time) and the top table."""
     profiler = cProfile.Profile()
@@ -243,6 +270,9 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"outside mj_step, per control step: min {1e6 * outside[0]:.1f} us, median "
               f"{1e6 * outside[len(outside) // 2]:.1f} us ({len(outside)} blocks of "
               f"{max(1, args.steps // 4)} steps)")  # fmt: skip
+        loop_s, watch_s = watchdog_cost(runner, args.steps)
+        print(f"watchdog (tipped and stuck robots): {1e6 * watch_s:.1f} us per control step, "
+              f"{100 * watch_s / loop_s:.2f} % of the loop (budget 5 %)")  # fmt: skip
         shares, table = profile(runner, args.profile_steps, args.top)
         print(f"profile of {args.profile_steps} steps (cProfile inflates Python-side costs):")
         for name, share in shares:
@@ -255,6 +285,7 @@ def main(argv: list[str] | None = None) -> dict:
             "ratio_to_mj_step_inside_loop": runner_s / times["inside_s"],
             "outside_physics_us_min": 1e6 * outside[0],
             "outside_physics_us_median": 1e6 * outside[len(outside) // 2],
+            "watchdog_share_of_loop": watch_s / loop_s,
             "projected_hours_120_generations": hours,
             "profile_shares": dict(shares),
             "summary": runner.summary(),
