@@ -69,27 +69,25 @@ def episodes(events: pd.DataFrame, start: str, end: str, last_step: int) -> pd.D
 def merged(spells: pd.DataFrame, gap: int) -> pd.DataFrame:
     """The spells with those of one robot less than ``gap`` steps apart joined into one row,
     which lasts from the first spell's start to the last one's end."""
-    rows = []
-    for robot, group in spells.sort_values(["robot", "step"]).groupby("robot"):
-        start = end = None
-        for step, steps in group[["step", "steps"]].itertuples(index=False):
-            if start is not None and end is not None and step - end < gap:
-                end = max(end, int(step) + int(steps))
-                continue
-            if start is not None and end is not None:
-                rows.append((int(robot), start, end - start))
-            start, end = int(step), int(step) + int(steps)
-        if start is not None and end is not None:
-            rows.append((int(robot), start, end - start))
+    joined: list[list[int]] = []  # robot, first step, end step
+    ordered = spells.sort_values(["robot", "step"])[["robot", "step", "steps"]]
+    for robot, step, steps in ordered.itertuples(index=False):
+        if joined and joined[-1][0] == robot and step - joined[-1][2] < gap:
+            joined[-1][2] = max(joined[-1][2], int(step + steps))
+        else:
+            joined.append([int(robot), int(step), int(step + steps)])
+    rows = [(robot, first, end - first) for robot, first, end in joined]
     return pd.DataFrame(rows, columns=["robot", "step", "steps"])
 
 
 def window_steps(path: Path, window: tuple[int, int]) -> tuple[int, int]:
-    """The control steps (after ``begin``, up to ``end``) of generations G0..G1 of a run."""
+    """The control steps (after ``begin``, up to ``end``) of generations G0..G1 of a run; an
+    empty span (0, 0) if the run closed no generation of the window."""
     closed = pd.read_csv(path / "statistics.csv")["closed_at_step"].tolist()
     first, last = window
-    begin = closed[first - 1] if 0 < first <= len(closed) else 0
-    return begin, closed[min(last, len(closed) - 1)]
+    if first >= len(closed):
+        return 0, 0
+    return (closed[first - 1] if first > 0 else 0), closed[min(last, len(closed) - 1)]
 
 
 def share_within(spells: pd.DataFrame, begin: int, end: int, robots: int) -> float:

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
-import pandas as pd
+from pathlib import Path
 
-from benchmarks.watchdog_study import episodes, merged, share_within
+import pandas as pd
+import pytest
+
+from benchmarks.watchdog_study import episodes, main, merged, share_within
 
 
 def _events(rows: list[tuple[int, int, str, int]]) -> pd.DataFrame:
@@ -34,3 +37,10 @@ def test_the_share_within_a_window_counts_only_its_steps() -> None:
     spells = pd.DataFrame([(0, 100, 30), (1, 190, 30)], columns=["robot", "step", "steps"])
     assert share_within(spells, 110, 200, robots=2) == (19 + 11) / 180
     assert share_within(spells.iloc[:0], 110, 200, robots=2) == 0.0
+
+
+def test_bad_options_exit_2_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for bad in (["--window", "5-2"], ["--lagging", "40"], ["--merge-gap", "0"]):
+        assert main([str(tmp_path), *bad]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and bad[0] in err[0]
