@@ -24,11 +24,13 @@ Run: ``python -m benchmarks.evolution_throughput [--steps 4000] [--policies auto
 from __future__ import annotations
 
 import argparse
+import contextlib
 import cProfile
 import io
 import json
 import pstats
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import mujoco
@@ -133,6 +135,28 @@ def measure(runner: EvolutionRunner, steps: int, block: int) -> dict[str, float]
     return totals
 
 
+@contextlib.contextmanager
+def timing(owner: Any, name: str) -> Iterator[list[float]]:
+    """Time every call of ``owner.name`` in place while the block runs: yields a one-item list
+    holding the seconds spent in it so far (the caller may reset it), then restores the
+    method."""
+    method = getattr(owner, name)
+    clock = time.perf_counter
+    spent = [0.0]
+
+    def timed(*args: Any) -> Any:
+        start = clock()
+        result = method(*args)
+        spent[0] += clock() - start
+        return result
+
+    setattr(owner, name, timed)
+    try:
+        yield spent
+    finally:
+        delattr(owner, name)  # the class's method again
+
+
 def outside_physics(runner: EvolutionRunner, steps: int, blocks: int = 8) -> list[float]:
     """Seconds per control step spent outside the physics, for ``blocks`` blocks of ``steps``.
 
@@ -141,52 +165,25 @@ def outside_physics(runner: EvolutionRunner, steps: int, blocks: int = 8) -> lis
     (sensing, deciding, acting, the survival mechanics, the schedule), with no recorder in the
     loop. The spread between blocks shows the machine's noise; the minimum is the cleanest.
     """
-    survival = runner.survival
-    advance = survival.advance_physics
-    clock = time.perf_counter
-    physics = [0.0]
-
-    def timed() -> None:
-        start = clock()
-        advance()
-        physics[0] += clock() - start
-
-    survival.advance_physics = timed  # type: ignore[method-assign]
     per_step = []
-    try:
+    with timing(runner.survival, "advance_physics") as physics:
         for _ in range(blocks):
             physics[0] = 0.0
-            start = clock()
+            start = time.perf_counter()
             for _ in range(steps):
                 runner.step()
-            per_step.append((clock() - start - physics[0]) / steps)
-    finally:
-        del survival.advance_physics  # the class's method again
+            per_step.append((time.perf_counter() - start - physics[0]) / steps)
     return sorted(per_step)
 
 
 def watchdog_cost(runner: EvolutionRunner, steps: int) -> tuple[float, float]:
     """Seconds per control step of the whole loop and of the watchdog in it (its
     ``observe``, which runs once per step, timed in place) over ``steps`` steps."""
-    watchdog = runner.watchdog
-    observe = watchdog.observe
-    clock = time.perf_counter
-    spent = [0.0]
-
-    def timed() -> Any:
-        start = clock()
-        found = observe()
-        spent[0] += clock() - start
-        return found
-
-    watchdog.observe = timed  # type: ignore[method-assign]
-    try:
-        start = clock()
+    with timing(runner.watchdog, "observe") as spent:
+        start = time.perf_counter()
         for _ in range(steps):
             runner.step()
-        total = clock() - start
-    finally:
-        del watchdog.observe  # the class's method again
+        total = time.perf_counter() - start
     return total / steps, spent[0] / steps
 
 
