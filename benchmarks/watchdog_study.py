@@ -115,8 +115,10 @@ def summarise_run(path: Path, published: Path | None, lagging: tuple[int, int] |
         "generations": int(record["summary"]["completed_generations"]),
         "robot_hours": round(hours, 2), "commit": record["versions"].get("git_commit"),
     }  # fmt: skip
+    every_spell = []
     for name, start, end in TROUBLES:
         spells = episodes(events, start, end, steps)
+        every_spell.append(spells)
         found = merged(spells, merge_gap)
         row[f"{name}_spells"] = len(spells)
         share = float(spells["steps"].sum()) / (steps * n) if steps else 0.0
@@ -133,7 +135,7 @@ def summarise_run(path: Path, published: Path | None, lagging: tuple[int, int] |
     if published is not None:
         row["replays_published"] = replays(path, published / path.name)
     if lagging is not None:
-        row.update(lagging_robots(path, events, lagging, steps))
+        row.update(lagging_robots(path, events, lagging, pd.concat(every_spell)))
     return row
 
 
@@ -150,11 +152,11 @@ def replays(path: Path, published: Path) -> str:
 
 
 def lagging_robots(path: Path, events: pd.DataFrame, window: tuple[int, int],
-                   last_step: int) -> dict[str, Any]:  # fmt: skip
+                   spells: pd.DataFrame) -> dict[str, Any]:  # fmt: skip
     """The robots that completed a life in at most 2 of the window's generations, and the
     watchdog's troubles of each within the window's steps: ``robot:<tips>t<jams>j<share>%``,
     the tips and stuck spells that began in the window and the share of its steps the robot
-    spent tipped or stuck."""
+    spent tipped or stuck (``spells``: the run's tips and jams, :func:`episodes`)."""
     per_robot = pd.read_csv(path / "statistics_per_robot.csv")
     first, last = window
     inside = per_robot[(per_robot["generation"] >= first) & (per_robot["generation"] <= last)]
@@ -163,7 +165,6 @@ def lagging_robots(path: Path, events: pd.DataFrame, window: tuple[int, int],
     lagging = [r for r in robots if int(taking_part.get(r, 0)) <= 2]
     begin, end = window_steps(path, window)
     window_events = events[(events["step"] > begin) & (events["step"] <= end)]
-    spells = pd.concat([episodes(events, start, stop, last_step) for _, start, stop in TROUBLES])
     troubled = []
     for robot in lagging:
         mine = window_events[window_events["robot"] == robot]
