@@ -1,6 +1,8 @@
 # Two entry points for a fresh machine (Debian, Python >= 3.11): `make run` and `make test`.
 # Both install the Debian rendering libraries if missing, create .venv and install the package.
 PY ?= python3
+# Test processes (pytest-xdist): the CI machine's 2 cores.
+TEST_WORKERS ?= 2
 VENV := .venv
 STAMP := $(VENV)/.installed
 
@@ -19,7 +21,7 @@ run: $(STAMP)
 	$(VENV)/bin/cyber-rodent evolve
 
 test: $(STAMP)
-	$(VENV)/bin/python -m pytest
+	$(VENV)/bin/python -m pytest -n $(TEST_WORKERS)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check cyber_rodent behaviours evolution tests benchmarks
