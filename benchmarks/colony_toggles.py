@@ -378,11 +378,15 @@ def run_row(run: Run) -> dict[str, Any]:
     }  # fmt: skip
     dog = run.watchdog
     if dog is not None:
+        tips, jams = float(dog["tips"].sum()), float(dog["jams"].sum())
+        tipped, stuck = float(dog["tipped_steps"].sum()), float(dog["stuck_steps"].sum())
         row.update({
-            "tips_per_robot_hour": float(dog["tips"].sum()) / hours,
-            "jams_per_robot_hour": float(dog["jams"].sum()) / hours,
-            "tipped_share": float(dog["tipped_steps"].sum()) * run.control_dt / 3600 / hours,
-            "stuck_share": float(dog["stuck_steps"].sum()) * run.control_dt / 3600 / hours,
+            "tips_per_robot_hour": tips / hours, "jams_per_robot_hour": jams / hours,
+            "tipped_share": tipped * run.control_dt / 3600 / hours,
+            "stuck_share": stuck * run.control_dt / 3600 / hours,
+            # how long each lasted, on average: the robot-steps spent tipped (stuck) per tip (jam)
+            "tip_mean_steps": tipped / tips if tips else math.nan,
+            "jam_mean_steps": stuck / jams if jams else math.nan,
             "rescues": int(dog["rescues"].sum()),
         })  # fmt: skip
     return row
@@ -527,12 +531,13 @@ def _fmt(value: float, digits: int = 2) -> str:
 
 def markdown(groups: pd.DataFrame, tests: pd.DataFrame) -> str:
     lines = ["| group | runs | per life | per robot-hour | completed | deaths | random share "
-             "| tips / robot-h | jams / robot-h |", "|" + " --- |" * 9]  # fmt: skip
+             "| tips / robot-h | jams / robot-h | steps per jam |",
+             "|" + " --- |" * 10]  # fmt: skip
     for _, g in groups.iterrows():
         cells = [f"{_fmt(g[c])} ± {_fmt(g[c + '_sd'])}" for c in MEASURES]
         extra = [_fmt(g.get(c, math.nan), d) for c, d in (
-            ("completed", 1), ("deaths", 1), ("random_share", 2),
-            ("tips_per_robot_hour", 3), ("jams_per_robot_hour", 2))]  # fmt: skip
+            ("completed", 1), ("deaths", 1), ("random_share", 2), ("tips_per_robot_hour", 3),
+            ("jams_per_robot_hour", 2), ("jam_mean_steps", 1))]  # fmt: skip
         lines.append(f"| {g['group']} | {g['runs']} | " + " | ".join(cells + extra) + " |")
     head = "| family | toggle | measure | a → b | difference [95 % CI] | Cliff's δ [95 % CI] |"
     lines += ["", head + " p | p (Holm) |", "|" + " --- |" * 8]

@@ -17,6 +17,7 @@ from benchmarks.colony_toggles import (
     main,
     per_life,
     per_robot_hour,
+    run_row,
     study_cells,
     study_spec,
 )
@@ -54,6 +55,25 @@ def test_the_measures_read_their_windows() -> None:
     assert math.isnan(per_robot_hour(short))  # never reached 96 robot-hours
     late = _run(list(map(float, range(60))), [1000 * (g + 1) for g in range(60)])
     assert per_life(late) == pytest.approx(np.mean(range(50, 60)))
+
+
+def test_the_watchdog_row_counts_per_robot_hour_and_per_trouble() -> None:
+    # 60 generations, the last closing at 18,000 steps: 100 robots x 18,000 x 0.2 s = 100 h.
+    steps = [300 * (g + 1) for g in range(60)]
+    stats = pd.DataFrame({
+        "generation": range(60), "batteries_mean": 1.0, "closed_at_step": steps,
+        "completed": 80, "deaths": 5, "matings_mean": 3.0, "random_share": 0.5,
+    })  # fmt: skip
+    dog = pd.DataFrame({"generation": range(60), "tips": 0, "jams": 0, "rescues": 0,
+                        "tipped_steps": 0, "stuck_steps": 0, "robots": 100})  # fmt: skip
+    dog.loc[3, ["jams", "stuck_steps"]] = (2, 30)  # two jams, 30 robot-steps stuck
+    dog.loc[40, ["jams", "stuck_steps"]] = (1, 150)
+    row = run_row(Run("EE-T", 0, 100, 0.2, stats, dog, stats))
+    assert row["robot_hours"] == pytest.approx(100.0)
+    assert row["jams_per_robot_hour"] == pytest.approx(3 / 100)
+    assert row["jam_mean_steps"] == pytest.approx(180 / 3)  # 60 steps (12 s) per jam
+    assert row["stuck_share"] == pytest.approx(180 * 0.2 / 3600 / 100)  # of 100 robot-hours
+    assert row["tips_per_robot_hour"] == 0.0 and math.isnan(row["tip_mean_steps"])
 
 
 def test_the_cells_are_the_plans() -> None:
