@@ -13,7 +13,7 @@ first defaults (:data:`FIRST_DEFAULTS`, a 0.1 s step) and tried the combinations
 today's defaults; the second varies every unknown, one at a time, around today's defaults. A
 first-round sweep runs with the code of the first defaults (``--code``, a checkout of it), a
 second-round one with a checkout of today's defaults (the published round ran with the commit
-``results/fig6`` records).
+``results/fig6_published_contacts`` records).
 
 Each run contributes its mean over its last ``--window`` generations; the table gives, per
 study, value and method, the mean and standard deviation over seeds (:mod:`evolution.lab.grid`).

@@ -89,7 +89,7 @@ PROG = "colony_toggles"
 STUDY_FILE = "study.json"
 WATCHDOG_FILE = "watchdog.csv"
 #: Where the Fig. 6 re-run on the fixed robot publishes its runs (P and CE-P).
-P_PUBLISHED = Path("results/fig6_fixed")
+P_PUBLISHED = Path("results/fig6")
 
 # --- the plan ------------------------------------------------------------------------------------
 #: Generations per run, and the seeds of the cells this study runs (P's come from Fig. 6).

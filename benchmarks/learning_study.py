@@ -82,7 +82,7 @@ IMAGES = Path("docs/images")
 GENERATIONS = 60
 SEEDS = "0-4"
 #: Control steps per run: 60 generations of the fixed behaviours take about 770,000
-#: (``results/fig6``: 758,576 and 768,115 for EE seeds 0 and 1).
+#: (``results/fig6_published_contacts``: 758,576 and 768,115 for EE seeds 0 and 1).
 MAX_STEPS = 1_000_000
 #: ``world.pack_reactivation_steps`` of the variant: 20 s, a pack's worth of absence.
 REACTIVATION_STEPS = 100
