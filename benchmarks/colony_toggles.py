@@ -88,7 +88,7 @@ PROG = "colony_toggles"
 #: The study's record in ``--out``: a resumed study must have the same plan.
 STUDY_FILE = "study.json"
 WATCHDOG_FILE = "watchdog.csv"
-#: Where the Fig. 6 re-run on the fixed robot publishes its runs (P and CE-P).
+#: The Fig. 6 runs (on the fixed robot), whose first 60 generations are P and CE-P.
 P_PUBLISHED = Path("results/fig6")
 
 # --- the plan ------------------------------------------------------------------------------------
