@@ -30,10 +30,11 @@ docs/results.md and was committed before the first run; this module implements i
     .venv/bin/python -m benchmarks.colony_toggles           # the analysis, from published tables
 
 ``--run`` runs the study as one sweep (:mod:`evolution.lab.sweep`, an explicit cell list, seed
-by seed so that partial results cover every cell), or resumes it: finished runs are skipped,
-interrupted runs continue from their checkpoints, a study directory holding another plan is
-refused. Every setting is checked before anything starts (a bad one exits with status 2 and
-one line). As each run finishes its small tables are published to ``--published``
+by seed so that partial results cover every cell), or resumes it: finished runs are skipped
+(runs already published too, so a new machine resumes from the repository), interrupted runs
+continue from their checkpoints, a study directory holding another plan is refused. Every
+setting is checked before anything starts (a bad one exits with status 2 and one line). As
+each run finishes its small tables are published to ``--published``
 (``results/colony_toggles/<cell>/<method>-seed<NNN>/``: statistics, per-robot and per-arena
 statistics, the watchdog's table, ``run.json`` with the run's commit).
 
@@ -69,7 +70,7 @@ if sys.path and Path(sys.path[0]).resolve() == Path(__file__).resolve().parent:
     sys.path.pop(0)
 
 from benchmarks.colony_study import StudyError, check_study_dir, run_finished  # noqa: E402
-from benchmarks.publish_runs import publish_run  # noqa: E402
+from benchmarks.publish_runs import finished, publish_run  # noqa: E402
 from cyber_rodent.atomic import atomic_output, write_text  # noqa: E402
 from evolution.lab.api import RunOutput  # noqa: E402
 from evolution.lab.comparison import rank_test  # noqa: E402
@@ -264,6 +265,16 @@ def publish_finished(out: Path, published: Path, spec: SweepSpec) -> list[SweepR
     return done
 
 
+def pending(spec: SweepSpec, out: Path, published: Path) -> list[SweepRun]:
+    """The runs of ``spec`` still to run, in the study's order: neither finished in ``out``
+    nor published in ``published`` (so that a new machine, whose ``out`` is empty, resumes
+    from the published tables instead of running a finished run again)."""
+    return [
+        m for m in spec.runs
+        if not run_finished(run_dir(out, *m)) and not finished(run_dir(published, *m))
+    ]  # fmt: skip
+
+
 def run_study(args: argparse.Namespace, spec: SweepSpec) -> bool:
     """Run or resume the study in ``args.out``, publishing each run as it finishes; False if
     a run failed (the others finished and were published)."""
@@ -271,7 +282,7 @@ def run_study(args: argparse.Namespace, spec: SweepSpec) -> bool:
     write_text(args.out / STUDY_FILE, json.dumps(study_record(spec), indent=2) + "\n")
     for member in publish_finished(args.out, args.published, spec):
         print(f"published {run_dir('', *member)}")
-    todo = [m for m in spec.runs if not run_finished(run_dir(args.out, *m))]
+    todo = pending(spec, args.out, args.published)
     print(f"{PROG}: {len(spec.runs)} runs, {len(spec.runs) - len(todo)} finished, "
           f"{len(todo)} to run", flush=True)  # fmt: skip
     if not todo:

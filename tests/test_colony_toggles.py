@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -15,12 +17,14 @@ from benchmarks.colony_toggles import (
     cliff_delta,
     holm,
     main,
+    pending,
     per_life,
     per_robot_hour,
     run_row,
     study_cells,
     study_spec,
 )
+from evolution.lab.sweep import run_dir
 
 
 def test_holm_steps_down_and_keeps_the_order() -> None:
@@ -95,3 +99,20 @@ def test_a_bad_argument_exits_2_in_one_line(capsys: pytest.CaptureFixture[str]) 
     assert main(["--run", "--workers", "0", "--out", "/nonexistent/never"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--workers" in err[0]
+
+
+def _finished_tables(path: Path, generations: int, target: int) -> None:
+    path.mkdir(parents=True)
+    (path / "run.json").write_text(json.dumps({"target_generations": target}))
+    pd.DataFrame({"generation": range(generations)}).to_csv(path / "statistics.csv", index=False)
+
+
+def test_a_published_run_is_not_run_again(tmp_path: Path) -> None:
+    spec = study_spec(seeds=(0, 1), generations=3)
+    out, published = tmp_path / "runs", tmp_path / "results"
+    first, second = spec.runs[0], spec.runs[1]
+    _finished_tables(run_dir(published, *first), generations=3, target=3)  # finished
+    _finished_tables(run_dir(published, *second), generations=2, target=3)  # one short
+    todo = pending(spec, out, published)
+    assert first not in todo and second in todo
+    assert todo == [m for m in spec.runs if m != first]  # the study's order is kept
