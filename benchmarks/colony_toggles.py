@@ -32,7 +32,9 @@ docs/results.md and was committed before the first run; this module implements i
 ``--run`` runs the study as one sweep (:mod:`evolution.lab.sweep`, an explicit cell list, seed
 by seed so that partial results cover every cell), or resumes it: finished runs are skipped
 (runs already published too, so a new machine resumes from the repository), interrupted runs
-continue from their checkpoints, a study directory holding another plan is refused. Every
+continue from their checkpoints, a study directory holding another plan is refused.
+``--groups`` runs only some groups' runs: two invocations on one ``--out`` can split the groups
+(a long group on one core, the rest on the other). Every
 setting is checked before anything starts (a bad one exits with status 2 and one line). As
 each run finishes its small tables are published to ``--published``
 (``results/colony_toggles/<cell>/<method>-seed<NNN>/``: statistics, per-robot and per-arena
@@ -265,14 +267,33 @@ def publish_finished(out: Path, published: Path, spec: SweepSpec) -> list[SweepR
     return done
 
 
-def pending(spec: SweepSpec, out: Path, published: Path) -> list[SweepRun]:
+def pending(
+    spec: SweepSpec, out: Path, published: Path, groups: Sequence[str] | None = None
+) -> list[SweepRun]:
     """The runs of ``spec`` still to run, in the study's order: neither finished in ``out``
     nor published in ``published`` (so that a new machine, whose ``out`` is empty, resumes
-    from the published tables instead of running a finished run again)."""
+    from the published tables instead of running a finished run again); only those of
+    ``groups`` (labels) where given."""
+    chosen = None if groups is None else {(GROUP[g].cell, GROUP[g].method) for g in groups}
     return [
         m for m in spec.runs
-        if not run_finished(run_dir(out, *m)) and not finished(run_dir(published, *m))
+        if (chosen is None or (m.cell, m.method) in chosen)
+        and not run_finished(run_dir(out, *m)) and not finished(run_dir(published, *m))
     ]  # fmt: skip
+
+
+def parse_groups(text: str) -> tuple[str, ...]:
+    """``--groups``: comma-separated labels of the groups this study runs (P's run elsewhere).
+
+    Raises:
+        ValueError: one line naming the first unknown or P group and the allowed ones.
+    """
+    allowed = [g.label for g in GROUPS if g.cell is not None]
+    labels = tuple(dict.fromkeys(part.strip() for part in text.split(",") if part.strip()))
+    for label in labels or ("",):
+        if label not in allowed:
+            raise ValueError(f"--groups: {label!r} is not one of {', '.join(allowed)}")
+    return labels
 
 
 def run_study(args: argparse.Namespace, spec: SweepSpec) -> bool:
@@ -282,9 +303,9 @@ def run_study(args: argparse.Namespace, spec: SweepSpec) -> bool:
     write_text(args.out / STUDY_FILE, json.dumps(study_record(spec), indent=2) + "\n")
     for member in publish_finished(args.out, args.published, spec):
         print(f"published {run_dir('', *member)}")
-    todo = pending(spec, args.out, args.published)
-    print(f"{PROG}: {len(spec.runs)} runs, {len(spec.runs) - len(todo)} finished, "
-          f"{len(todo)} to run", flush=True)  # fmt: skip
+    todo = pending(spec, args.out, args.published, args.groups)
+    print(f"{PROG}: {len(spec.runs)} runs, {len(pending(spec, args.out, args.published))} "
+          f"to run, {len(todo)} of them here", flush=True)  # fmt: skip
     if not todo:
         return True
 
@@ -596,6 +617,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("runs/colony_toggles"))
     parser.add_argument("--workers", type=int, default=2, help="runs at a time")
     parser.add_argument(
+        "--groups",
+        metavar="LABELS",
+        default=None,
+        help="with --run: run only these groups' runs (comma-separated, e.g. mEDEA-B), so that "
+        "two invocations on one --out can split the groups between them (default: all)",
+    )
+    parser.add_argument(
         "--ray",
         metavar="ADDRESS",
         default=None,
@@ -622,6 +650,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         from cyber_rodent.validation import check_integer
 
         check_integer("--workers", args.workers, 1, 4096)
+        if args.groups is not None:
+            args.groups = parse_groups(args.groups)
         if args.ray is not None:
             check_ray_address(args.ray)
         spec = study_spec()

@@ -17,6 +17,7 @@ from benchmarks.colony_toggles import (
     cliff_delta,
     holm,
     main,
+    parse_groups,
     pending,
     per_life,
     per_robot_hour,
@@ -116,3 +117,20 @@ def test_a_published_run_is_not_run_again(tmp_path: Path) -> None:
     todo = pending(spec, out, published)
     assert first not in todo and second in todo
     assert todo == [m for m in spec.runs if m != first]  # the study's order is kept
+    # --groups: only the chosen groups' runs, still in the study's order
+    only = pending(spec, out, published, groups=("mEDEA-B", "EE-T"))
+    assert only == [m for m in todo if (m.cell, m.method) in {("bw", "medea"), ("t", "ee")}]
+    assert only and all(m in todo for m in only)
+
+
+def test_groups_name_the_studys_own_cells() -> None:
+    assert parse_groups("mEDEA-B, EE-T,EE-T") == ("mEDEA-B", "EE-T")
+    for bad in ("EE-P", "EE-X", ""):  # P runs in Fig. 6; unknown; none at all
+        with pytest.raises(ValueError, match="--groups"):
+            parse_groups(bad)
+
+
+def test_a_bad_group_exits_2_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--run", "--groups", "EE-Q", "--out", "/nonexistent/never"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--groups" in err[0] and "mEDEA-B" in err[0]
