@@ -34,9 +34,9 @@ by seed so that partial results cover every cell), or resumes it: finished runs 
 (runs already published too, so a new machine resumes from the repository), interrupted runs
 continue from their checkpoints, a study directory holding another plan is refused.
 ``--groups`` runs only some groups' runs: two invocations on one ``--out`` can split the groups
-(a long group on one core, the rest on the other). Every
-setting is checked before anything starts (a bad one exits with status 2 and one line). As
-each run finishes its small tables are published to ``--published``
+(a long group on one core, the rest on the other). Every setting is checked before anything
+starts (a bad one exits with status 2 and one line). As each run finishes its small tables are
+published to ``--published``
 (``results/colony_toggles/<cell>/<method>-seed<NNN>/``: statistics, per-robot and per-arena
 statistics, the watchdog's table, ``run.json`` with the run's commit).
 
